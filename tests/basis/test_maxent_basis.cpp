@@ -1,0 +1,194 @@
+// MaxEntBasis: dimensions 1 and 3, hull handling, parallel determinism, and every
+// bad input raising maxentflow::Error with what and where.
+#include <catch2/catch.hpp>
+
+#include <maxentflow/basis/maxent_basis.hpp>
+#include <maxentflow/core/parallel.hpp>
+
+#include "../support/clouds.hpp"
+
+#include <cmath>
+#include <limits>
+
+using maxentflow::Error;
+using maxentflow::MaxEntBasis;
+using maxentflow::test::grid_cloud;
+using Catch::Matchers::Contains;
+
+TEST_CASE("1-D basis: consistency inside, Kronecker delta at the ends", "[basis]") {
+  const int n = 11;
+  Eigen::Matrix<double, 1, Eigen::Dynamic> nodes(1, n);
+  for (int a = 0; a < n; ++a) nodes(0, a) = a * 0.1 + (a % 2 ? 0.02 : 0.0) * (a < n - 1);
+  const MaxEntBasis<1> basis(nodes, Eigen::VectorXd::Constant(n, 0.1));
+  Eigen::Matrix<double, 1, Eigen::Dynamic> x(1, 101);
+  for (int i = 0; i <= 100; ++i) x(0, i) = i / 100.0;
+  const auto t = basis.evaluate(x);
+  for (int i = 0; i < t.size(); ++i) {
+    double s = 0, l = 0, gs = 0, gl = 0;
+    for (std::size_t j = 0; j < t.nodes(i).size(); ++j) {
+      const double xa = nodes(0, t.nodes(i)[j]);
+      s += t.values(i)[j];
+      l += t.values(i)[j] * xa;
+      gs += t.gradients(i)(0, static_cast<Eigen::Index>(j));
+      gl += t.gradients(i)(0, static_cast<Eigen::Index>(j)) * xa;
+    }
+    CHECK(std::abs(s - 1) <= 1e-13);
+    CHECK(std::abs(l - x(0, i)) <= 1e-13);
+    CHECK(std::abs(gs) <= 1e-9);
+    CHECK(std::abs(gl - 1) <= 1e-10);
+  }
+  CHECK(t.on_hull.front() == 1);
+  CHECK(t.on_hull.back() == 1);
+  // At the end node the basis is its Kronecker delta (other entries exactly 0).
+  const auto e0 = basis.evaluate(Eigen::Matrix<double, 1, 1>(0.0), false);
+  for (std::size_t j = 0; j < e0.node.size(); ++j) CHECK(e0.p[j] == (e0.node[j] == 0 ? 1.0 : 0.0));
+}
+
+TEST_CASE("3-D basis: interior consistency; faces, edges and corners restrict", "[basis]") {
+  const int n = 5;
+  Eigen::Matrix3Xd nodes(3, n * n * n);
+  int a = 0;
+  for (int k = 0; k < n; ++k)
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) nodes.col(a++) << i / 4.0, j / 4.0, k / 4.0;
+  const MaxEntBasis<3> basis(nodes, Eigen::VectorXd::Constant(nodes.cols(), 0.25));
+  auto check = [&](const Eigen::Vector3d& x, bool on_hull) {
+    const auto e = basis.evaluate(x);
+    CHECK(e.on_hull == on_hull);
+    double s = 0;
+    Eigen::Vector3d l = Eigen::Vector3d::Zero(), gs = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d gl = Eigen::Matrix3d::Zero();
+    for (std::size_t j = 0; j < e.node.size(); ++j) {
+      const Eigen::Vector3d xa = nodes.col(e.node[j]);
+      CHECK(e.p[j] >= 0);
+      s += e.p[j];
+      l += e.p[j] * xa;
+      gs += e.gradients().col(static_cast<Eigen::Index>(j));
+      gl += e.gradients().col(static_cast<Eigen::Index>(j)) * xa.transpose();
+      // On a face, edge or corner, only nodes on it carry weight.
+      for (int k = 0; k < 3; ++k)
+        if (x(k) == 0.0 || x(k) == 1.0)
+          if (xa(k) != x(k)) CHECK(e.p[j] == 0.0);
+    }
+    CHECK(std::abs(s - 1) <= 1e-12);
+    CHECK((l - x).norm() <= 1e-12 * 0.25);
+    CHECK(gs.norm() * 0.25 <= 1e-10);
+    CHECK((gl - Eigen::Matrix3d::Identity()).norm() <= 1e-8);
+  };
+  check(Eigen::Vector3d(0.31, 0.52, 0.47), false);
+  check(Eigen::Vector3d(0.013, 0.77, 0.5), false);
+  check(Eigen::Vector3d(0.3, 0.6, 0.0), true);    // face z = 0
+  check(Eigen::Vector3d(1.0, 0.45, 0.72), true);  // face x = 1
+  check(Eigen::Vector3d(0.37, 0.0, 1.0), true);   // edge y = 0, z = 1
+  const auto corner = basis.evaluate(Eigen::Vector3d(1, 1, 0), false);
+  const int corner_node = 4 + 5 * 4;  // (1, 1, 0)
+  for (std::size_t j = 0; j < corner.node.size(); ++j)
+    CHECK(corner.p[j] == (corner.node[j] == corner_node ? 1.0 : 0.0));
+}
+
+TEST_CASE("Batch evaluation: thread count and blocks do not change results", "[basis]") {
+  const auto cloud = grid_cloud("perturbed", 30);
+  const MaxEntBasis<2> basis(cloud.nodes, cloud.h);
+  const Eigen::Matrix2Xd x = maxentflow::test::random_points(5000, 0, 1);
+  const int threads = maxentflow::max_threads();
+  maxentflow::set_threads(1);
+  const auto serial = basis.evaluate(x);
+  maxentflow::set_threads(std::max(2, threads));
+  const auto parallel = basis.evaluate(x);
+  maxentflow::set_threads(threads);
+  CHECK(serial.offset == parallel.offset);
+  CHECK(serial.node == parallel.node);
+  CHECK(serial.p == parallel.p);  // bitwise
+  CHECK(serial.grad == parallel.grad);
+  // Single-point evaluation (no warm start) agrees to the solver tolerance.
+  double worst = 0;
+  for (int i = 0; i < 200; ++i) {
+    const auto e = basis.evaluate(Eigen::Vector2d(x.col(i)));
+    REQUIRE(e.node.size() == serial.nodes(i).size());
+    for (std::size_t j = 0; j < e.node.size(); ++j) worst = std::max(worst, std::abs(e.p[j] - serial.values(i)[j]));
+  }
+  CHECK(worst <= 1e-11);
+  CHECK(serial.mean_iterations() > 0);
+  CHECK(serial.max_iterations() <= 20);
+}
+
+TEST_CASE("Support cut-off: only nodes within h sqrt(-ln tol0 / gamma)", "[basis]") {
+  const auto cloud = grid_cloud("regular", 21);
+  MaxEntBasis<2>::params prm;
+  prm.gamma = 1.6;
+  prm.tol0 = 1e-4;
+  const MaxEntBasis<2> basis(cloud.nodes, cloud.h, prm);
+  const Eigen::Vector2d x(0.513, 0.487);
+  const auto e = basis.evaluate(x, false);
+  const double R = cloud.h0 * std::sqrt(-std::log(1e-4) / 1.6);
+  int inside = 0;
+  for (Eigen::Index a = 0; a < cloud.nodes.cols(); ++a)
+    if ((cloud.nodes.col(a) - x).norm() <= R) ++inside;
+  CHECK(static_cast<int>(e.node.size()) == inside);
+  for (int a : e.node) CHECK((cloud.nodes.col(a) - x).norm() <= R);
+}
+
+TEST_CASE("Bad input raises maxentflow::Error with what and where", "[basis][errors]") {
+  const auto cloud = grid_cloud("regular", 6);
+  SECTION("gamma <= 0") {
+    MaxEntBasis<2>::params prm;
+    prm.gamma = 0;
+    CHECK_THROWS_WITH(MaxEntBasis<2>(cloud.nodes, cloud.h, prm), Contains("gamma must be positive"));
+    Eigen::VectorXd g = Eigen::VectorXd::Constant(cloud.h.size(), 1.6);
+    g(7) = -1;
+    CHECK_THROWS_WITH(MaxEntBasis<2>(cloud.nodes, cloud.h, g), Contains("node 7"));
+  }
+  SECTION("h <= 0") {
+    Eigen::VectorXd h = cloud.h;
+    h(4) = 0;
+    CHECK_THROWS_WITH(MaxEntBasis<2>(cloud.nodes, h), Contains("h must be positive") && Contains("node 4"));
+  }
+  SECTION("coincident nodes") {
+    Eigen::Matrix2Xd nodes = cloud.nodes;
+    nodes.col(20) = nodes.col(13);
+    CHECK_THROWS_WITH(MaxEntBasis<2>(nodes, cloud.h), Contains("coincident nodes 13 and 20"));
+  }
+  SECTION("NaN coordinates") {
+    Eigen::Matrix2Xd nodes = cloud.nodes;
+    nodes(1, 9) = std::numeric_limits<double>::quiet_NaN();
+    CHECK_THROWS_WITH(MaxEntBasis<2>(nodes, cloud.h), Contains("NaN") && Contains("node 9"));
+    const MaxEntBasis<2> basis(cloud.nodes, cloud.h);
+    CHECK_THROWS_WITH(basis.evaluate(Eigen::Vector2d(0.5, std::nan(""))), Contains("NaN"));
+  }
+  SECTION("collinear nodes") {
+    Eigen::Matrix2Xd nodes(2, 5);
+    nodes << 0, 1, 2, 3, 4, 0, 1, 2, 3, 4;
+    CHECK_THROWS_WITH(MaxEntBasis<2>(nodes, Eigen::VectorXd::Ones(5)), Contains("span"));
+  }
+  SECTION("point outside the hull") {
+    const MaxEntBasis<2> basis(cloud.nodes, cloud.h);
+    CHECK_THROWS_WITH(basis.evaluate(Eigen::Vector2d(1.2, 0.5)), Contains("outside the convex hull"));
+    CHECK_THROWS_WITH(basis.evaluate(Eigen::Vector2d(0.5, -1e-6)), Contains("outside the convex hull"));
+    Eigen::Matrix2Xd x(2, 3);
+    x << 0.5, 0.2, 1.5, 0.5, 0.2, 0.5;
+    CHECK_THROWS_WITH(basis.evaluate(x), Contains("point 2"));
+  }
+  SECTION("too few neighbours") {
+    // A square grid and one far node: the hull is large but a point far from the
+    // grid sees no node within its support.
+    Eigen::Matrix2Xd nodes(2, cloud.nodes.cols() + 1);
+    nodes << cloud.nodes, Eigen::Vector2d(3.0, 3.0);
+    Eigen::VectorXd h(nodes.cols());
+    h << cloud.h, 0.2;
+    const MaxEntBasis<2> basis(nodes, h);
+    CHECK_THROWS_WITH(basis.evaluate(Eigen::Vector2d(2.0, 2.0)), Contains("support") && Contains("point"));
+  }
+  SECTION("point outside the hull of its neighbours: the dual solve fails") {
+    Eigen::Matrix2Xd nodes(2, cloud.nodes.cols() + 1);
+    nodes << cloud.nodes, Eigen::Vector2d(3.0, 3.0);
+    Eigen::VectorXd h(nodes.cols());
+    h << cloud.h, 0.2;
+    MaxEntBasis<2>::params prm;
+    prm.max_iterations = 30;
+    const MaxEntBasis<2> basis(nodes, h, prm);
+    // Just beyond the grid's corner: inside the global hull, outside the hull of
+    // its support (grid nodes only), so ln Z has no minimizer.
+    CHECK_THROWS_WITH(basis.evaluate(Eigen::Vector2d(1.05, 1.04)),
+                      Contains("dual solve failed") && Contains("iterations") && Contains("|r|"));
+  }
+}
