@@ -11,3 +11,11 @@
 #include <maxentflow/mesh/integration_mesh.hpp>
 #include <maxentflow/mesh/nodal_spacing.hpp>
 #include <maxentflow/mesh/quadrature.hpp>
+#include <maxentflow/io/csv.hpp>
+#include <maxentflow/material/norton_hoff.hpp>
+#include <maxentflow/flow/flow_discretization.hpp>
+#include <maxentflow/flow/stabilized_flow.hpp>
+#include <maxentflow/flow/constraints.hpp>
+#include <maxentflow/flow/flow_system.hpp>
+#include <maxentflow/solver/linear_solver.hpp>
+#include <maxentflow/solver/nonlinear_solver.hpp>

@@ -25,4 +25,22 @@ inline void set_threads(int n) {
 #endif
 }
 
+/// This thread's number inside a parallel region (0 outside or without OpenMP).
+inline int thread_id() {
+#if defined(_OPENMP)
+  return omp_get_thread_num();
+#else
+  return 0;
+#endif
+}
+
+/// Threads in the current parallel region (1 outside or without OpenMP).
+inline int team_size() {
+#if defined(_OPENMP)
+  return omp_get_num_threads();
+#else
+  return 1;
+#endif
+}
+
 }  // namespace maxentflow

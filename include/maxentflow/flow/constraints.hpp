@@ -1,0 +1,180 @@
+// maxentflow: essential conditions by Lagrange multipliers (Eq. 15), with the
+// multipliers discretized by linear FE functions on the boundary segments.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include <maxentflow/core/error.hpp>
+#include <maxentflow/flow/flow_discretization.hpp>
+#include <maxentflow/flow/stabilized_flow.hpp>
+
+namespace maxentflow {
+
+/// One Lagrange multiplier Lambda_i: the condition sum_k coef_k X[dof_k] = rhs
+/// (a row of L^T in Eq. 21) and the force its multiplier puts on the part:
+/// Lambda_i * force (the force the workpiece exerts on a plate or tool).
+struct ConstraintRow {
+  std::vector<int> dof;  ///< ascending
+  std::vector<double> coef;
+  double rhs = 0.0;
+  int part = -1;
+  int node = -1;  ///< the boundary node carrying the multiplier's hat function (-1: none)
+  Eigen::Vector2d force = Eigen::Vector2d::Zero();
+};
+
+/// Chooses boundary segments by their end points (material on the left of a -> b).
+using SegmentSelector = std::function<bool(const Eigen::Vector2d& xa, const Eigen::Vector2d& xb)>;
+
+/// Segments with both ends within tol of the line through `point` with normal `normal`.
+inline SegmentSelector on_line(Eigen::Vector2d point, Eigen::Vector2d normal, double tol) {
+  normal.normalize();
+  return [point, normal, tol](const Eigen::Vector2d& xa, const Eigen::Vector2d& xb) {
+    return std::abs((xa - point).dot(normal)) <= tol && std::abs((xb - point).dot(normal)) <= tol;
+  };
+}
+
+/// The constraint rows of a configuration, grouped into named parts
+/// (a plate, a symmetry line, a tool), with the reaction on each part.
+class ConstraintSet {
+ public:
+  using Mesh = IntegrationMesh<Traits<2>>;
+  using Value = std::function<double(const Eigen::Vector2d&)>;
+
+  int add_part(const std::string& name) {
+    const auto it = std::find(names_.begin(), names_.end(), name);
+    if (it != names_.end()) return static_cast<int>(it - names_.begin());
+    names_.push_back(name);
+    return static_cast<int>(names_.size()) - 1;
+  }
+  int find_part(const std::string& name) const {
+    const auto it = std::find(names_.begin(), names_.end(), name);
+    require(it != names_.end(), detail::cat("no constraint part named '", name, "'"),
+            "ConstraintSet::find_part");
+    return static_cast<int>(it - names_.begin());
+  }
+  const std::vector<std::string>& parts() const { return names_; }
+  const std::vector<ConstraintRow>& rows() const { return rows_; }
+  std::vector<ConstraintRow>& rows() { return rows_; }
+  int size() const { return static_cast<int>(rows_.size()); }
+  void clear_rows() { rows_.clear(); }
+  /// Removes the rows of one part (e.g. a tool's contact rows before a new active set).
+  void clear_part(int part) {
+    rows_.erase(std::remove_if(rows_.begin(), rows_.end(),
+                               [part](const ConstraintRow& r) { return r.part == part; }),
+                rows_.end());
+  }
+  void add(ConstraintRow row) {
+    require(row.dof.size() == row.coef.size(), "a constraint row needs one coefficient per dof",
+            "ConstraintSet::add");
+    rows_.push_back(std::move(row));
+  }
+
+  /// v . e = value(x) on the boundary segments chosen by `select` (Eq. 15), e a
+  /// unit direction (e = (1,0) for v_x, the normal for a symmetry line). One
+  /// multiplier per segment end node, hat functions along the chosen segments:
+  /// row i is int N_i phi_a e ds . v_a = int N_i value ds. The measure is plain
+  /// arc length also in axisymmetric problems (the multiplier then carries the
+  /// 2 pi r, and sums to the total force); this keeps the rows regular on the axis.
+  /// Returns the number of rows added (0 if no segment was chosen).
+  int add_velocity(const Mesh& mesh, const FlowDiscretization& disc, const SegmentSelector& select,
+                   Eigen::Vector2d direction, const Value& value, const std::string& part_name) {
+    const int part = add_part(part_name);
+    require(direction.norm() > 0, "a velocity condition needs a nonzero direction",
+            detail::cat("ConstraintSet::add_velocity, part '", part_name, "'"));
+    direction.normalize();
+    const auto& X = mesh.nodes();
+    const auto& edges = mesh.edges();
+    const int ne = disc.points_per_edge();
+    const auto& tab = disc.edge_basis();
+    std::map<int, std::map<int, double>> coef;  // multiplier node -> dof -> coefficient
+    std::map<int, std::pair<double, double>> rhs_len;  // node -> (int N value, int N)
+    for (const auto& seg : mesh.boundary_segments()) {
+      if (!select(X.col(seg.a), X.col(seg.b))) continue;
+      const auto& edge = edges[static_cast<std::size_t>(seg.edge)];
+      for (int k = 0; k < ne; ++k) {
+        const int ge = seg.edge * ne + k;
+        const double s = disc.edge_parameter(k);  // from edge.a
+        const double w = disc.edge_weights()(ge);
+        const Eigen::Vector2d x = disc.edge_points().col(ge);
+        const double g = value ? value(x) : 0.0;
+        const int ends[2] = {edge.a, edge.b};
+        const double hat[2] = {1.0 - s, s};
+        const auto nodes = tab.nodes(ge);
+        const auto p = tab.values(ge);
+        for (int e = 0; e < 2; ++e) {
+          auto& row = coef[ends[e]];
+          for (std::size_t j = 0; j < nodes.size(); ++j) {
+            if (p[j] == 0.0) continue;
+            for (int c = 0; c < 2; ++c)
+              if (direction[c] != 0.0)
+                row[velocity_dof(nodes[j], c)] += w * hat[e] * p[j] * direction[c];
+          }
+          auto& rl = rhs_len[ends[e]];
+          rl.first += w * hat[e] * g;
+          rl.second += w * hat[e];
+        }
+      }
+    }
+    for (const auto& [node, dofs] : coef) {
+      ConstraintRow row;
+      row.part = part;
+      row.node = node;
+      for (const auto& [dof, c] : dofs) {
+        row.dof.push_back(dof);
+        row.coef.push_back(c);
+      }
+      row.rhs = rhs_len[node].first;
+      row.force = rhs_len[node].second * direction;
+      rows_.push_back(std::move(row));
+    }
+    return static_cast<int>(coef.size());
+  }
+
+  /// Fixes the pressure level: int p dOmega = mean * |Omega| (needed when the
+  /// velocity is prescribed on the whole boundary, as in a closed die).
+  void add_pressure_mean(const FlowDiscretization& disc, double mean,
+                         const std::string& part_name = "pressure mean") {
+    const int part = add_part(part_name);
+    std::map<int, double> c;
+    double volume = 0.0;
+    for (int t = 0; t < disc.cells(); ++t) {
+      const auto u = disc.nodes(t);
+      for (int q = 0; q < disc.points_per_cell(); ++q) {
+        const double w = disc.weight(t * disc.points_per_cell() + q);
+        const double* p = disc.values(t, q);
+        volume += w;
+        for (std::size_t i = 0; i < u.size(); ++i)
+          if (p[i] != 0.0) c[pressure_dof(u[i])] += w * p[i];
+      }
+    }
+    ConstraintRow row;
+    row.part = part;
+    for (const auto& [dof, v] : c) {
+      row.dof.push_back(dof);
+      row.coef.push_back(v / volume);
+    }
+    row.rhs = mean;
+    rows_.push_back(std::move(row));
+  }
+
+  /// The force the workpiece exerts on a part, from the multipliers (X[3N + i]).
+  Eigen::Vector2d reaction(int part, const Eigen::VectorXd& X, int n_nodes) const {
+    Eigen::Vector2d f = Eigen::Vector2d::Zero();
+    for (std::size_t i = 0; i < rows_.size(); ++i)
+      if (rows_[i].part == part) f += X[3 * n_nodes + static_cast<Eigen::Index>(i)] * rows_[i].force;
+    return f;
+  }
+
+ private:
+  std::vector<std::string> names_;
+  std::vector<ConstraintRow> rows_;
+};
+
+}  // namespace maxentflow

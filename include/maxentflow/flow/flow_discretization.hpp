@@ -1,0 +1,294 @@
+// maxentflow: the max-ent basis at the quadrature points of an integration mesh,
+// laid out per triangle for assembly, with the consistent-integration correction.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <span>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include <maxentflow/basis/maxent_basis.hpp>
+#include <maxentflow/core/error.hpp>
+#include <maxentflow/core/parallel.hpp>
+#include <maxentflow/mesh/integration_mesh.hpp>
+
+namespace maxentflow {
+
+/// Plane strain or axisymmetric (x = (r, z), the axis at r = 0).
+enum class Geometry { plane_strain, axisymmetric };
+
+struct FlowDiscretizationParams {
+  int triangle_points = 3;             ///< Gauss points per triangle (1, 3, 6, 7, 12)
+  int segment_points = 3;              ///< Gauss-Legendre points per edge (1..8)
+  bool consistent_integration = true;  ///< false: the paper's plain Gauss quadrature
+};
+
+/// Per triangle T of the integration mesh: the nodes U_T whose basis functions
+/// are nonzero somewhere on T (its Gauss points or its edges' Gauss points),
+/// and at each Gauss point of T the values p_a and gradients of all a in U_T.
+///
+/// Consistent integration (spec V1; Ortiz-Bernardin, Puso & Sukumar 2015):
+/// max-ent functions are not polynomials, so Gauss quadrature breaks the
+/// discrete divergence theorem sum_q w_q grad p_a(x_q) = int_dT p_a n, and
+/// with it the patch test. Each gradient in T gets the constant
+///   c_a = ( int_dT p_a n ds - sum_q w_q grad p_a(x_q) ) / |T|
+/// (edge integral by Gauss-Legendre). Linear fields keep their exact gradients
+/// and interior edges cancel, so the identity holds on the whole domain.
+/// Axisymmetric: the r-weighted identities int_T (r dp/dr + p) = int_dT p n_r r
+/// and int_T r dp/dz = int_dT p n_z r, with |T| replaced by int_T r.
+class FlowDiscretization {
+ public:
+  using Mesh = IntegrationMesh<Traits<2>>;
+  using Basis = MaxEntBasis<2>;
+
+  using params = FlowDiscretizationParams;
+
+  FlowDiscretization() = default;
+  FlowDiscretization(const Mesh& mesh, const Basis& basis, Geometry g, const params& prm = {}) {
+    build(mesh, basis, g, prm);
+  }
+
+  void build(const Mesh& mesh, const Basis& basis, Geometry g, const params& prm = {});
+
+  Geometry geometry() const { return geometry_; }
+  bool axisymmetric() const { return geometry_ == Geometry::axisymmetric; }
+  const params& parameters() const { return prm_; }
+  int number_of_nodes() const { return n_nodes_; }
+
+  // --- cells ---
+  int cells() const { return static_cast<int>(node_offset_.size()) - 1; }
+  int points_per_cell() const { return nq_; }
+  /// U_T, ascending.
+  std::span<const int> nodes(int t) const {
+    return {node_.data() + node_offset_[t], static_cast<std::size_t>(node_offset_[t + 1] - node_offset_[t])};
+  }
+  int count(int t) const { return node_offset_[t + 1] - node_offset_[t]; }
+  /// Gauss point q of triangle t has global index t * points_per_cell() + q.
+  const Eigen::Matrix2Xd& points() const { return x_; }
+  /// Weight: area (plane strain) or area * 2 pi r (axisymmetric).
+  double weight(int g) const { return w_[g]; }
+  /// rho of Eq. (14): the mean h_a over the support of the point.
+  double rho(int g) const { return rho_[g]; }
+  /// p_a at point q of triangle t, in the order of nodes(t).
+  const double* values(int t, int q) const { return p_.data() + value_offset_[t] + q * count(t); }
+  /// Gradients (x, y interleaved per node), corrected if consistent_integration.
+  const double* gradients(int t, int q) const {
+    return dp_.data() + 2 * (value_offset_[t] + q * count(t));
+  }
+  double mean_nodes_per_cell() const {
+    return cells() ? static_cast<double>(node_.size()) / cells() : 0.0;
+  }
+
+  // --- edges (for boundary conditions and tractions) ---
+  int points_per_edge() const { return ne_; }
+  /// Gauss points of mesh edge e are e * points_per_edge() + k, from edge.a to edge.b.
+  const Eigen::Matrix2Xd& edge_points() const { return edge_x_; }
+  /// Plain length weights (no 2 pi r).
+  const Eigen::VectorXd& edge_weights() const { return edge_w_; }
+  /// Parameter s in [0, 1] of edge point k along its edge (from edge.a).
+  double edge_parameter(int k) const { return segment_rule(prm_.segment_points).t[k]; }
+  const BasisTable<2>& edge_basis() const { return edge_basis_; }
+
+  /// max over nodes of |sum_q w_q grad p_a - int_dOmega p_a n| relative to the
+  /// largest |int_dOmega p_a n|: the discrete divergence-theorem defect
+  /// (round-off with the correction); the r-weighted identities if axisymmetric.
+  double divergence_defect(const Mesh& mesh) const;
+
+ private:
+  params prm_;
+  Geometry geometry_ = Geometry::plane_strain;
+  int n_nodes_ = 0, nq_ = 0, ne_ = 0;
+  std::vector<int> node_offset_{0}, node_, value_offset_{0};
+  std::vector<double> p_, dp_, w_, rho_;
+  Eigen::Matrix2Xd x_, edge_x_;
+  Eigen::VectorXd edge_w_;
+  BasisTable<2> edge_basis_;
+};
+
+inline void FlowDiscretization::build(const Mesh& mesh, const Basis& basis, Geometry g,
+                                      const params& prm) {
+  const char* where = "FlowDiscretization::build";
+  require(!mesh.empty(), "the integration mesh is empty", where);
+  require(basis.size() == mesh.number_of_nodes(),
+          detail::cat("basis has ", basis.size(), " nodes, mesh ", mesh.number_of_nodes()), where);
+  prm_ = prm;
+  geometry_ = g;
+  n_nodes_ = static_cast<int>(mesh.number_of_nodes());
+  const bool axi = axisymmetric();
+  const TriangleRule& trule = triangle_rule(prm.triangle_points);
+  const SegmentRule& srule = segment_rule(prm.segment_points);
+  nq_ = static_cast<int>(trule.weight.size());
+  ne_ = static_cast<int>(srule.weight.size());
+
+  const auto cq = mesh.cell_quadrature(trule, false);
+  const auto eq = mesh.edge_quadrature(srule, false);
+  x_ = cq.x;
+  edge_x_ = eq.x;
+  edge_w_ = eq.w;
+  if (axi)
+    for (Eigen::Index k = 0; k < x_.cols(); ++k)
+      MAXENTFLOW_REQUIRE(x_(0, k) > 0,
+                         detail::cat("axisymmetric Gauss point at r = ", x_(0, k),
+                                     " <= 0: the material crosses the axis"),
+                         detail::cat(where, ", triangle ", cq.cell[static_cast<std::size_t>(k)]));
+  const BasisTable<2> cell_basis = basis.evaluate(x_, true);
+  basis.evaluate(edge_x_, edge_basis_, false);
+
+  const int nt = static_cast<int>(mesh.number_of_triangles());
+  const auto& h = basis.h();
+
+  // Pass 1: U_T of every triangle (parallel, per-thread scratch).
+  std::vector<std::vector<int>> unions(static_cast<std::size_t>(nt));
+#pragma omp parallel for schedule(dynamic, 256)
+  for (int t = 0; t < nt; ++t) {
+    std::vector<int>& u = unions[static_cast<std::size_t>(t)];
+    for (int q = 0; q < nq_; ++q) {
+      const auto s = cell_basis.nodes(t * nq_ + q);
+      u.insert(u.end(), s.begin(), s.end());
+    }
+    for (int i = 0; i < 3; ++i) {
+      const int e = mesh.triangle_edge(t, i);
+      for (int k = 0; k < ne_; ++k) {
+        const auto s = edge_basis_.nodes(e * ne_ + k);
+        u.insert(u.end(), s.begin(), s.end());
+      }
+    }
+    std::sort(u.begin(), u.end());
+    u.erase(std::unique(u.begin(), u.end()), u.end());
+  }
+  node_offset_.assign(static_cast<std::size_t>(nt) + 1, 0);
+  value_offset_.assign(static_cast<std::size_t>(nt) + 1, 0);
+  for (int t = 0; t < nt; ++t) {
+    const int n = static_cast<int>(unions[static_cast<std::size_t>(t)].size());
+    node_offset_[t + 1] = node_offset_[t] + n;
+    value_offset_[t + 1] = value_offset_[t] + n * nq_;
+  }
+  node_.resize(static_cast<std::size_t>(node_offset_.back()));
+  p_.assign(static_cast<std::size_t>(value_offset_.back()), 0.0);
+  dp_.assign(2 * static_cast<std::size_t>(value_offset_.back()), 0.0);
+  w_.resize(static_cast<std::size_t>(nt * nq_));
+  rho_.resize(static_cast<std::size_t>(nt * nq_));
+
+  constexpr double two_pi = 6.283185307179586476925;
+  const auto& edges = mesh.edges();
+  const auto& X = mesh.nodes();
+  // Pass 2: values, gradients, correction, rho, weights.
+#pragma omp parallel
+  {
+    std::vector<double> boundary_integral;  // int_dT p_a n (r), 2 per node of U_T
+#pragma omp for schedule(dynamic, 256)
+    for (int t = 0; t < nt; ++t) {
+      const auto& u = unions[static_cast<std::size_t>(t)];
+      std::copy(u.begin(), u.end(), node_.begin() + node_offset_[t]);
+      const int n = static_cast<int>(u.size());
+      auto position = [&](int a) {
+        return static_cast<int>(std::lower_bound(u.begin(), u.end(), a) - u.begin());
+      };
+      double* p = p_.data() + value_offset_[t];
+      double* dp = dp_.data() + 2 * value_offset_[t];
+      double measure = 0.0;  // |T| or int_T r
+      for (int q = 0; q < nq_; ++q) {
+        const int gq = t * nq_ + q;
+        const auto s = cell_basis.nodes(gq);
+        const auto v = cell_basis.values(gq);
+        const auto grad = cell_basis.gradients(gq);
+        double hsum = 0.0;
+        for (std::size_t j = 0; j < s.size(); ++j) {
+          const int i = position(s[j]);
+          p[q * n + i] = v[j];
+          dp[2 * (q * n + i)] = grad(0, static_cast<Eigen::Index>(j));
+          dp[2 * (q * n + i) + 1] = grad(1, static_cast<Eigen::Index>(j));
+          hsum += h(s[j]);
+        }
+        rho_[static_cast<std::size_t>(gq)] = hsum / static_cast<double>(s.size());
+        const double r = x_(0, gq);
+        const double wq = cq.w(gq);
+        measure += axi ? wq * r : wq;
+        w_[static_cast<std::size_t>(gq)] = axi ? wq * two_pi * r : wq;
+      }
+      if (!prm_.consistent_integration) continue;
+      boundary_integral.assign(2 * static_cast<std::size_t>(n), 0.0);
+      const auto& tri = mesh.triangles()[static_cast<std::size_t>(t)];
+      for (int i = 0; i < 3; ++i) {
+        const int e = mesh.triangle_edge(t, i);
+        const auto& edge = edges[static_cast<std::size_t>(e)];
+        // Outward normal of T on this edge: away from the opposite vertex.
+        const Eigen::Vector2d d = X.col(edge.b) - X.col(edge.a);
+        Eigen::Vector2d nrm(d.y(), -d.x());
+        nrm.normalize();
+        if (nrm.dot(X.col(tri[static_cast<std::size_t>(i)]) - X.col(edge.a)) > 0) nrm = -nrm;
+        for (int k = 0; k < ne_; ++k) {
+          const int ge = e * ne_ + k;
+          const double wk = edge_w_(ge) * (axi ? edge_x_(0, ge) : 1.0);
+          const auto s = edge_basis_.nodes(ge);
+          const auto v = edge_basis_.values(ge);
+          for (std::size_t j = 0; j < s.size(); ++j) {
+            const int a = position(s[j]);
+            boundary_integral[2 * static_cast<std::size_t>(a)] += wk * v[j] * nrm.x();
+            boundary_integral[2 * static_cast<std::size_t>(a) + 1] += wk * v[j] * nrm.y();
+          }
+        }
+      }
+      for (int i = 0; i < n; ++i) {
+        double cx = boundary_integral[2 * static_cast<std::size_t>(i)];
+        double cy = boundary_integral[2 * static_cast<std::size_t>(i) + 1];
+        for (int q = 0; q < nq_; ++q) {
+          const double wq = cq.w(t * nq_ + q);
+          const double r = axi ? x_(0, t * nq_ + q) : 1.0;
+          cx -= wq * (r * dp[2 * (q * n + i)] + (axi ? p[q * n + i] : 0.0));
+          cy -= wq * r * dp[2 * (q * n + i) + 1];
+        }
+        cx /= measure;
+        cy /= measure;
+        for (int q = 0; q < nq_; ++q) {
+          dp[2 * (q * n + i)] += cx;
+          dp[2 * (q * n + i) + 1] += cy;
+        }
+      }
+    }
+  }
+}
+
+inline double FlowDiscretization::divergence_defect(const Mesh& mesh) const {
+  // Plane identity sum_q w grad p_a = int_dOmega p_a n over the whole mesh.
+  std::vector<double> lhs(2 * static_cast<std::size_t>(n_nodes_), 0.0), rhs(lhs.size(), 0.0);
+  constexpr double two_pi = 6.283185307179586476925;
+  for (int t = 0; t < cells(); ++t) {
+    const auto u = nodes(t);
+    const int n = count(t);
+    for (int q = 0; q < nq_; ++q) {
+      const int g = t * nq_ + q;
+      const bool axi = axisymmetric();
+      const double r = axi ? x_(0, g) : 1.0;
+      const double wq = axi ? w_[g] / (two_pi * r) : w_[g];
+      const double* p = values(t, q);
+      const double* dp = gradients(t, q);
+      for (int i = 0; i < n; ++i) {
+        lhs[2 * static_cast<std::size_t>(u[i])] += wq * (r * dp[2 * i] + (axi ? p[i] : 0.0));
+        lhs[2 * static_cast<std::size_t>(u[i]) + 1] += wq * r * dp[2 * i + 1];
+      }
+    }
+  }
+  for (const auto& seg : mesh.boundary_segments()) {
+    for (int k = 0; k < ne_; ++k) {
+      const int ge = seg.edge * ne_ + k;
+      const double wk = edge_w_(ge) * (axisymmetric() ? edge_x_(0, ge) : 1.0);
+      const auto s = edge_basis_.nodes(ge);
+      const auto v = edge_basis_.values(ge);
+      for (std::size_t j = 0; j < s.size(); ++j) {
+        rhs[2 * static_cast<std::size_t>(s[j])] += wk * v[j] * seg.normal.x();
+        rhs[2 * static_cast<std::size_t>(s[j]) + 1] += wk * v[j] * seg.normal.y();
+      }
+    }
+  }
+  double defect = 0.0, scale = 0.0;
+  for (std::size_t i = 0; i < lhs.size(); ++i) {
+    defect = std::max(defect, std::abs(lhs[i] - rhs[i]));
+    scale = std::max(scale, std::abs(rhs[i]));
+  }
+  return scale > 0 ? defect / scale : defect;
+}
+
+}  // namespace maxentflow

@@ -1,0 +1,203 @@
+// maxentflow: the saddle system of Eq. (21) for one configuration: cell
+// integrals, Lagrange-multiplier rows, tractions; what NonlinearSolver drives.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include <maxentflow/core/error.hpp>
+#include <maxentflow/flow/constraints.hpp>
+#include <maxentflow/flow/flow_discretization.hpp>
+#include <maxentflow/flow/stabilized_flow.hpp>
+
+namespace maxentflow {
+
+/// X = [v_x, v_y, P per node (3N) | Lambda (one per constraint row)].
+template <ViscosityLaw Material>
+class FlowSystem {
+ public:
+  using Assembler = StabilizedFlowAssembler<Material>;
+  using Matrix = SystemPattern::Matrix;
+  using Mesh = IntegrationMesh<Traits<2>>;
+  using Traction = std::function<Eigen::Vector2d(const Eigen::Vector2d&)>;
+
+  FlowSystem(const Mesh& mesh, const FlowDiscretization& disc, Material material,
+             typename Assembler::params prm = {})
+      : mesh_(&mesh), disc_(&disc), assembler_(disc, std::move(material), prm),
+        traction_(Eigen::VectorXd::Zero(3 * disc.number_of_nodes())) {
+    pattern_.build_adjacency(disc);
+    structure_dirty_ = true;
+  }
+
+  Assembler& assembler() { return assembler_; }
+  const Assembler& assembler() const { return assembler_; }
+  const FlowDiscretization& discretization() const { return *disc_; }
+  const Mesh& mesh() const { return *mesh_; }
+  ConstraintSet& constraints() {
+    structure_dirty_ = true;  // the caller may change rows
+    return constraints_;
+  }
+  const ConstraintSet& constraints() const { return constraints_; }
+  const SystemPattern& pattern() const { return pattern_; }
+  int number_of_nodes() const { return disc_->number_of_nodes(); }
+
+  /// Prescribed traction t(x) on the chosen boundary segments (Eq. 6d):
+  /// F_a += int phi_a t dGamma (2 pi r dGamma axisymmetric).
+  void add_traction(const SegmentSelector& select, const Traction& t) {
+    const auto& X = mesh_->nodes();
+    const int ne = disc_->points_per_edge();
+    const auto& tab = disc_->edge_basis();
+    constexpr double two_pi = 6.283185307179586476925;
+    for (const auto& seg : mesh_->boundary_segments()) {
+      if (!select(X.col(seg.a), X.col(seg.b))) continue;
+      for (int k = 0; k < ne; ++k) {
+        const int ge = seg.edge * ne + k;
+        const Eigen::Vector2d x = disc_->edge_points().col(ge);
+        const double w = disc_->edge_weights()(ge) * (disc_->axisymmetric() ? two_pi * x.x() : 1.0);
+        const Eigen::Vector2d tv = t(x);
+        const auto nodes = tab.nodes(ge);
+        const auto p = tab.values(ge);
+        for (std::size_t j = 0; j < nodes.size(); ++j)
+          for (int c = 0; c < 2; ++c) traction_[velocity_dof(nodes[j], c)] += w * p[j] * tv[c];
+      }
+    }
+  }
+
+  /// Unknowns (3N + constraint rows); finalizes the structure after changes.
+  int size() {
+    update_structure();
+    return pattern_.size();
+  }
+  long structure_generation() {
+    update_structure();
+    return pattern_.generation();
+  }
+
+  /// A at X (Picard or Newton) and the residual R(X) = A_picard(X) X - F.
+  void assemble(const Eigen::VectorXd& X, Linearization kind, Matrix& A, Eigen::VectorXd& R) {
+    update_structure();
+    require(X.size() == pattern_.size(), detail::cat("X has ", X.size(), " entries, the system ", pattern_.size()),
+            "FlowSystem::assemble");
+    if (A.rows() != pattern_.size() || A.nonZeros() != pattern_.matrix().nonZeros() ||
+        generation_of_A_ != pattern_.generation()) {
+      A = pattern_.matrix();
+      generation_of_A_ = pattern_.generation();
+    } else {
+      std::fill_n(A.valuePtr(), A.nonZeros(), 0.0);
+    }
+    residual_impl(X, kind, &A, R);
+    double* v = A.valuePtr();
+    for (std::size_t k = 0; k < entry_pos_.size(); ++k) {
+      v[entry_pos_[k].first] += entry_coef_[k];   // L in the momentum rows
+      v[entry_pos_[k].second] += entry_coef_[k];  // L^T in the multiplier rows
+    }
+  }
+
+  void residual(const Eigen::VectorXd& X, Eigen::VectorXd& R) {
+    update_structure();
+    residual_impl(X, Linearization::picard, nullptr, R);
+  }
+
+  /// |momentum residual| / force scale (|internal force| + |traction|) of the last evaluation.
+  double relative_residual(const Eigen::VectorXd& R) const {
+    const int nv = 3 * number_of_nodes();
+    double r2 = 0.0;
+    for (int k = 0; k < nv; ++k)
+      if (k % 3 != 2) r2 += R[k] * R[k];
+    return std::sqrt(r2) / force_scale_;
+  }
+  /// Max-norm of the velocity part of X.
+  double velocity_norm(const Eigen::VectorXd& X) const {
+    double m = 0.0;
+    for (int a = 0; a < number_of_nodes(); ++a)
+      m = std::max({m, std::abs(X[3 * a]), std::abs(X[3 * a + 1])});
+    return m;
+  }
+  double force_scale() const { return force_scale_; }
+
+  /// Gauss-point fields at X (strain rate, viscosity, tau, pressure, div v).
+  FlowPointState point_state(const Eigen::VectorXd& X) const {
+    FlowPointState s;
+    Eigen::VectorXd R = Eigen::VectorXd::Zero(3 * number_of_nodes());
+    assembler_.assemble(X, Linearization::picard, pattern_, nullptr, R, nullptr, &s);
+    return s;
+  }
+
+  /// Force the workpiece exerts on a constraint part.
+  Eigen::Vector2d reaction(const std::string& part, const Eigen::VectorXd& X) const {
+    return constraints_.reaction(constraints_.find_part(part), X, number_of_nodes());
+  }
+
+ private:
+  void update_structure() {
+    if (!structure_dirty_) return;
+    structure_dirty_ = false;
+    pattern_.set_constraints(constraints_.rows());
+    // Value positions of each constraint coefficient in A (both blocks).
+    const Matrix& A = pattern_.matrix();
+    const int nv = 3 * number_of_nodes();
+    entry_pos_.clear();
+    entry_coef_.clear();
+    const int* outer = A.outerIndexPtr();
+    const int* inner = A.innerIndexPtr();
+    auto position = [&](int row, int col) {
+      const int* b = inner + outer[col];
+      const int* e = inner + outer[col + 1];
+      const int* it = std::lower_bound(b, e, row);
+      return static_cast<int>(it - inner);
+    };
+    const auto& rows = constraints_.rows();
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      const int li = nv + static_cast<int>(i);
+      for (std::size_t k = 0; k < rows[i].dof.size(); ++k) {
+        const int d = rows[i].dof[k];
+        require(d >= 0 && d < nv, detail::cat("constraint dof ", d, " out of range"),
+                detail::cat("FlowSystem, constraint row ", i));
+        entry_pos_.emplace_back(position(li, d), position(d, li));
+        entry_coef_.push_back(rows[i].coef[k]);
+      }
+    }
+  }
+
+  void residual_impl(const Eigen::VectorXd& X, Linearization kind, Matrix* A, Eigen::VectorXd& R) {
+    const int nv = 3 * number_of_nodes();
+    R.setZero(pattern_.size());
+    Eigen::VectorXd fint = Eigen::VectorXd::Zero(nv);
+    assembler_.assemble(X, kind, pattern_, A, R, &fint);
+    R.head(nv) -= traction_;
+    const auto& rows = constraints_.rows();
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      const double lambda = X[nv + static_cast<Eigen::Index>(i)];
+      double g = -rows[i].rhs;
+      for (std::size_t k = 0; k < rows[i].dof.size(); ++k) {
+        R[rows[i].dof[k]] += rows[i].coef[k] * lambda;
+        g += rows[i].coef[k] * X[rows[i].dof[k]];
+      }
+      R[nv + static_cast<Eigen::Index>(i)] = g;
+    }
+    force_scale_ = fint.norm() + traction_.norm();
+    if (!(force_scale_ > 0)) force_scale_ = 1.0;
+    MAXENTFLOW_REQUIRE(R.allFinite(), "the residual is not finite (NaN or Inf in the fields)",
+                       "FlowSystem::residual");
+  }
+
+  const Mesh* mesh_;
+  const FlowDiscretization* disc_;
+  Assembler assembler_;
+  ConstraintSet constraints_;
+  SystemPattern pattern_;
+  Eigen::VectorXd traction_;
+  std::vector<std::pair<int, int>> entry_pos_;
+  std::vector<double> entry_coef_;
+  bool structure_dirty_ = true;
+  long generation_of_A_ = -1;
+  double force_scale_ = 1.0;
+};
+
+}  // namespace maxentflow

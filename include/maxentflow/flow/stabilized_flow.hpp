@@ -1,0 +1,378 @@
+// maxentflow: the stabilized velocity-pressure flow formulation, Eqs. (6)-(14),
+// (19)-(22): cell integrals of the saddle system (21) and their Newton tangent.
+#pragma once
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <functional>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include <maxentflow/core/error.hpp>
+#include <maxentflow/core/parallel.hpp>
+#include <maxentflow/flow/flow_discretization.hpp>
+#include <maxentflow/material/norton_hoff.hpp>
+
+namespace maxentflow {
+
+/// Picard (direct iteration: mu and tau frozen at the current iterate) or
+/// Newton (consistent tangent, including d tau / d v).
+enum class Linearization { picard, newton };
+
+/// Unknowns: node a has v_x = X[3a], v_y = X[3a+1] (v_r, v_z axisymmetric) and
+/// the pressure coefficient P_a = X[3a+2] (the same max-ent basis, Eq. 19);
+/// Lagrange multipliers follow from 3N on.
+inline int velocity_dof(int a, int c) { return 3 * a + c; }
+inline int pressure_dof(int a) { return 3 * a + 2; }
+
+/// The sparse structure of the saddle system: every pair of nodes that share a
+/// triangle's U_T gives a dense 3x3 block (v_x, v_y, p); multiplier columns and
+/// rows follow. Built once per configuration, reused by every iteration.
+class SystemPattern {
+ public:
+  using Matrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+
+  /// node adjacency from the triangles' node sets; constraint rows as (dof lists).
+  template <class Rows>
+  void build(const FlowDiscretization& disc, const Rows& rows) {
+    build_adjacency(disc);
+    set_constraints(rows);
+  }
+
+  void build_adjacency(const FlowDiscretization& disc) {
+    const int n = disc.number_of_nodes();
+    n_nodes_ = n;
+    // triangles touching each node (node -> cells CSR)
+    std::vector<int> cnt(static_cast<std::size_t>(n) + 1, 0);
+    for (int t = 0; t < disc.cells(); ++t)
+      for (int a : disc.nodes(t)) ++cnt[static_cast<std::size_t>(a) + 1];
+    for (int a = 0; a < n; ++a) cnt[a + 1] += cnt[a];
+    std::vector<int> cells(static_cast<std::size_t>(cnt.back()));
+    {
+      std::vector<int> pos(cnt.begin(), cnt.end() - 1);
+      for (int t = 0; t < disc.cells(); ++t)
+        for (int a : disc.nodes(t)) cells[static_cast<std::size_t>(pos[a]++)] = t;
+    }
+    std::vector<std::vector<int>> adj(static_cast<std::size_t>(n));
+#pragma omp parallel for schedule(dynamic, 64)
+    for (int a = 0; a < n; ++a) {
+      auto& l = adj[static_cast<std::size_t>(a)];
+      for (int k = cnt[a]; k < cnt[a + 1]; ++k) {
+        const auto u = disc.nodes(cells[static_cast<std::size_t>(k)]);
+        l.insert(l.end(), u.begin(), u.end());
+      }
+      l.push_back(a);  // keep the diagonal block even for an orphan node
+      std::sort(l.begin(), l.end());
+      l.erase(std::unique(l.begin(), l.end()), l.end());
+    }
+    adj_offset_.assign(static_cast<std::size_t>(n) + 1, 0);
+    for (int a = 0; a < n; ++a)
+      adj_offset_[a + 1] = adj_offset_[a] + static_cast<int>(adj[static_cast<std::size_t>(a)].size());
+    adj_.resize(static_cast<std::size_t>(adj_offset_.back()));
+    for (int a = 0; a < n; ++a)
+      std::copy(adj[static_cast<std::size_t>(a)].begin(), adj[static_cast<std::size_t>(a)].end(),
+                adj_.begin() + adj_offset_[a]);
+  }
+
+  /// (Re)builds the matrix structure with these constraint rows (each with a
+  /// `dof` list, ascending); cheap, so contact can change its active set.
+  template <class Rows>
+  void set_constraints(const Rows& rows) {
+    const int nv = 3 * n_nodes_;
+    const int m = static_cast<int>(rows.size());
+    n_ = nv + m;
+    // multiplier rows per velocity/pressure column
+    std::vector<int> extra(static_cast<std::size_t>(nv) + 1, 0);
+    for (const auto& r : rows)
+      for (int d : r.dof) ++extra[static_cast<std::size_t>(d) + 1];
+    for (int j = 0; j < nv; ++j) extra[j + 1] += extra[j];
+    std::vector<int> extra_row(static_cast<std::size_t>(extra.back()));
+    {
+      std::vector<int> pos(extra.begin(), extra.end() - 1);
+      for (int i = 0; i < m; ++i)
+        for (int d : rows[static_cast<std::size_t>(i)].dof)
+          extra_row[static_cast<std::size_t>(pos[d]++)] = nv + i;
+    }
+    A_.resize(n_, n_);
+    std::vector<int> outer(static_cast<std::size_t>(n_) + 1, 0);
+    for (int b = 0; b < n_nodes_; ++b)
+      for (int c = 0; c < 3; ++c) {
+        const int j = 3 * b + c;
+        outer[j + 1] = outer[j] + 3 * (adj_offset_[b + 1] - adj_offset_[b]) + (extra[j + 1] - extra[j]);
+      }
+    for (int i = 0; i < m; ++i)
+      outer[nv + i + 1] = outer[nv + i] + static_cast<int>(rows[static_cast<std::size_t>(i)].dof.size());
+    A_.resizeNonZeros(outer.back());
+    std::copy(outer.begin(), outer.end(), A_.outerIndexPtr());
+    int* inner = A_.innerIndexPtr();
+    for (int b = 0; b < n_nodes_; ++b)
+      for (int c = 0; c < 3; ++c) {
+        const int j = 3 * b + c;
+        int k = outer[j];
+        for (int q = adj_offset_[b]; q < adj_offset_[b + 1]; ++q)
+          for (int cc = 0; cc < 3; ++cc) inner[k++] = 3 * adj_[static_cast<std::size_t>(q)] + cc;
+        for (int q = extra[j]; q < extra[j + 1]; ++q) inner[k++] = extra_row[static_cast<std::size_t>(q)];
+      }
+    for (int i = 0; i < m; ++i) {
+      int k = outer[nv + i];
+      for (int d : rows[static_cast<std::size_t>(i)].dof) inner[k++] = d;
+    }
+    std::fill_n(A_.valuePtr(), A_.nonZeros(), 0.0);
+    generation_ = next_generation();
+  }
+
+  int size() const { return n_; }
+  int number_of_nodes() const { return n_nodes_; }
+  /// Nodes coupled to node b (ascending).
+  const int* adjacency_begin(int b) const { return adj_.data() + adj_offset_[b]; }
+  const int* adjacency_end(int b) const { return adj_.data() + adj_offset_[b + 1]; }
+  /// A zeroed matrix with this structure.
+  const Matrix& matrix() const { return A_; }
+  /// Unique to this structure, across all patterns (a new symbolic factorization is due).
+  long generation() const { return generation_; }
+  double mean_adjacency() const {
+    return n_nodes_ ? static_cast<double>(adj_.size()) / n_nodes_ : 0.0;
+  }
+
+ private:
+  static long next_generation() {
+    static std::atomic<long> counter{0};
+    return ++counter;
+  }
+  int n_nodes_ = 0, n_ = 0;
+  long generation_ = 0;
+  std::vector<int> adj_offset_{0}, adj_;
+  Matrix A_;
+};
+
+/// Gauss-point state after an assembly (for post-processing and the tests).
+struct FlowPointState {
+  Eigen::VectorXd d;    ///< equivalent strain rate sqrt(2/3 D:D)
+  Eigen::VectorXd mu;   ///< viscosity
+  Eigen::VectorXd tau;  ///< stabilization parameter, Eq. (14)
+  Eigen::VectorXd p;    ///< pressure
+  Eigen::VectorXd div;  ///< div v
+};
+
+struct StabilizationParams {
+  double Cs = 0.5;                   ///< Eq. (14)
+  bool stabilize_body_force = true;  ///< keep f in the residual of Eq. (13), as the paper
+};
+
+/// Cell integrals of Eq. (21)-(22) for a viscosity law: K (with the tangent
+/// 2 mu Q + (4/3) mu'/d (Q eps)(Q eps)^T for Newton), G, the stabilization
+/// M_S = -int tau grad(phi)^T grad(phi) with tau = Cs rho^2 / mu (Eq. 14), the
+/// body force F and F_S. Stress sigma = 2 mu D - p I (pressure positive in
+/// compression). Residual form: R = A(X) X - F, so that a Picard step and a
+/// Newton step are both X += solve(A, -R).
+///
+/// tau depends on mu(d(v)); the Newton tangent differentiates it too (a
+/// non-symmetric pressure-velocity block), so Newton is quadratic for n != 1.
+template <ViscosityLaw Material>
+class StabilizedFlowAssembler {
+ public:
+  using Matrix = SystemPattern::Matrix;
+  using BodyForce = std::function<Eigen::Vector2d(const Eigen::Vector2d&)>;
+
+  using params = StabilizationParams;
+
+  StabilizedFlowAssembler(const FlowDiscretization& disc, Material material, params prm = {})
+      : disc_(&disc), material_(std::move(material)), prm_(prm) {
+    require(std::isfinite(prm_.Cs) && prm_.Cs >= 0,
+            detail::cat("Cs must be >= 0, got ", prm_.Cs), "StabilizedFlowAssembler");
+  }
+
+  const Material& material() const { return material_; }
+  const params& parameters() const { return prm_; }
+  const FlowDiscretization& discretization() const { return *disc_; }
+  void set_body_force(BodyForce f) { body_ = std::move(f); }
+  void set_body_force(const Eigen::Vector2d& f) {
+    body_ = [f](const Eigen::Vector2d&) { return f; };
+  }
+
+  /// Adds the cell integrals at X to A's values (A has pat's structure) and to
+  /// R (momentum and continuity rows, size >= 3N); fint (if given, size 3N)
+  /// receives the momentum rows without the body force, the force scale.
+  /// Parallel over nodes (each thread owns a node range: its rows and
+  /// columns); every entry sums its cells in the same order for any thread count.
+  void assemble(const Eigen::VectorXd& X, Linearization kind, const SystemPattern& pat, Matrix* A,
+                Eigen::VectorXd& R, Eigen::VectorXd* fint = nullptr,
+                FlowPointState* state = nullptr) const;
+
+ private:
+  static constexpr double two_thirds = 2.0 / 3.0;
+
+  const FlowDiscretization* disc_;
+  Material material_;
+  params prm_;
+  BodyForce body_;
+};
+
+template <ViscosityLaw Material>
+void StabilizedFlowAssembler<Material>::assemble(const Eigen::VectorXd& X, Linearization kind,
+                                                 const SystemPattern& pat, Matrix* A,
+                                                 Eigen::VectorXd& R, Eigen::VectorXd* fint,
+                                                 FlowPointState* state) const {
+  const FlowDiscretization& disc = *disc_;
+  const int N = disc.number_of_nodes();
+  const bool axi = disc.axisymmetric();
+  const bool newton = kind == Linearization::newton;
+  const int ns = axi ? 4 : 3;  // strain rows: eps_xx, eps_yy, (eps_tt), gamma_xy
+  const int nr = ns + 3;       // + phi row (pressure) + two grad(phi) rows
+  const int nq = disc.points_per_cell();
+  const int ncell = disc.cells();
+  require(X.size() >= 3 * N && R.size() >= 3 * N, "X and R need 3 entries per node",
+          "StabilizedFlowAssembler::assemble");
+  if (state) {
+    const auto np = static_cast<Eigen::Index>(ncell) * nq;
+    state->d.resize(np);
+    state->mu.resize(np);
+    state->tau.resize(np);
+    state->p.resize(np);
+    state->div.resize(np);
+  }
+  const int threads = std::max(1, std::min(max_threads(), N / 64 + 1));
+  double* values = A ? A->valuePtr() : nullptr;
+  const int* outer = A ? A->outerIndexPtr() : nullptr;
+
+#pragma omp parallel num_threads(threads)
+  {
+    const int tid = thread_id(), nth = team_size();
+    const int lo = static_cast<int>(static_cast<long>(N) * tid / nth);
+    const int hi = static_cast<int>(static_cast<long>(N) * (tid + 1) / nth);
+    Eigen::MatrixXd O, T, Aloc;
+    Eigen::VectorXd y, rloc, floc;
+    std::vector<int> kpos;
+    Eigen::Matrix<double, 7, 7> Dq;
+    double eps[4], Qeps[4], m[4];  // plain arrays: tiny, and no AVX-512 false positives in GCC 12
+    for (int t = 0; t < ncell; ++t) {
+      const auto u = disc.nodes(t);
+      if (u.back() < lo || u.front() >= hi) continue;
+      const int n = static_cast<int>(u.size()), nd = 3 * n;
+      O.setZero(nq * nr, nd);
+      T.resize(nq * nr, nd);
+      y.resize(nq * nr);
+      floc.setZero(nd);
+      for (int q = 0; q < nq; ++q) {
+        const int g = t * nq + q;
+        const double* p = disc.values(t, q);
+        const double* dp = disc.gradients(t, q);
+        const double w = disc.weight(g);
+        const double r = disc.points()(0, g);
+        auto Oq = O.middleRows(q * nr, nr);
+        for (int i = 0; i < n; ++i) {
+          const double gx = dp[2 * i], gy = dp[2 * i + 1];
+          Oq(0, 3 * i) = gx;
+          Oq(1, 3 * i + 1) = gy;
+          if (axi) Oq(2, 3 * i) = p[i] / r;  // hoop strain rate v_r / r
+          Oq(ns - 1, 3 * i) = gy;
+          Oq(ns - 1, 3 * i + 1) = gx;
+          Oq(ns, 3 * i + 2) = p[i];
+          Oq(ns + 1, 3 * i + 2) = gx;
+          Oq(ns + 2, 3 * i + 2) = gy;
+        }
+        // Current fields at the point: strain rate, pressure, grad p.
+        Eigen::Matrix<double, 7, 1> z = Eigen::Matrix<double, 7, 1>::Zero();
+        for (int i = 0; i < n; ++i) {
+          const int a = u[static_cast<std::size_t>(i)];
+          for (int c = 0; c < 3; ++c) {
+            const double xv = X[3 * a + c];
+            if (xv == 0.0) continue;
+            for (int k = 0; k < nr; ++k) z[k] += Oq(k, 3 * i + c) * xv;
+          }
+        }
+        double eQe = 0.0, div = 0.0;
+        for (int k = 0; k < ns; ++k) {
+          eps[k] = z[k];
+          Qeps[k] = k == ns - 1 ? 0.5 * z[k] : z[k];  // Q = diag(1, 1, (1), 1/2)
+          m[k] = k == ns - 1 ? 0.0 : 1.0;
+          eQe += eps[k] * Qeps[k];
+          div += m[k] * eps[k];
+        }
+        const double d = std::sqrt(std::max(0.0, two_thirds * eQe));
+        const Viscosity visc = material_.viscosity(d);
+        const double mu = visc.mu;
+        MAXENTFLOW_REQUIRE(std::isfinite(mu) && mu > 0,
+                           detail::cat("viscosity ", mu, " at d = ", d, " (NaN velocity?)"),
+                           detail::cat("StabilizedFlowAssembler, Gauss point ", g));
+        const double rho = disc.rho(g);
+        const double tau = prm_.Cs * rho * rho / mu;  // Eq. (14)
+        const Eigen::Vector2d b = body_ ? body_(disc.points().col(g)) : Eigen::Vector2d::Zero();
+        const Eigen::Vector2d bs = prm_.stabilize_body_force ? b : Eigen::Vector2d::Zero();
+        const Eigen::Vector2d s(z[ns + 1] - bs.x(), z[ns + 2] - bs.y());  // grad p - f
+        const double pq = z[ns];
+        if (state && u.front() >= lo) {  // one thread writes each point
+          state->d[g] = d;
+          state->mu[g] = mu;
+          state->tau[g] = tau;
+          state->p[g] = pq;
+          state->div[g] = div;
+        }
+        // Residual: strain rows w (2 mu Q eps - p m); phi row -w div v;
+        // grad rows -w tau (grad p - f)  (Eq. 13 with the sign of Eq. 21).
+        auto yq = y.segment(q * nr, nr);
+        for (int k = 0; k < ns; ++k) yq[k] = w * (2.0 * mu * Qeps[k] - pq * m[k]);
+        yq[ns] = -w * div;
+        yq[ns + 1] = -w * tau * s.x();
+        yq[ns + 2] = -w * tau * s.y();
+        for (int i = 0; i < n; ++i) {
+          floc[3 * i] -= w * p[i] * b.x();
+          floc[3 * i + 1] -= w * p[i] * b.y();
+        }
+        if (!A) continue;
+        // D_q: the linearized point operator, A_loc = sum_q O_q^T D_q O_q.
+        Dq.setZero();
+        for (int k = 0; k < ns; ++k) {
+          Dq(k, k) = w * 2.0 * mu * (k == ns - 1 ? 0.5 : 1.0);
+          Dq(k, ns) = -w * m[k];
+          Dq(ns, k) = -w * m[k];
+        }
+        Dq(ns + 1, ns + 1) = -w * tau;
+        Dq(ns + 2, ns + 2) = -w * tau;
+        if (newton && visc.dmu_dd_over_d != 0.0) {
+          const double alpha = 2.0 * two_thirds * visc.dmu_dd_over_d;  // (4/3) mu'/d
+          for (int k = 0; k < ns; ++k)
+            for (int l = 0; l < ns; ++l) Dq(k, l) += w * alpha * Qeps[k] * Qeps[l];
+          // d tau / d eps = -tau (mu'/d) / mu (2/3) Q eps
+          const double beta = -tau * visc.dmu_dd_over_d / mu * two_thirds;
+          for (int l = 0; l < ns; ++l) {
+            Dq(ns + 1, l) = -w * s.x() * beta * Qeps[l];
+            Dq(ns + 2, l) = -w * s.y() * beta * Qeps[l];
+          }
+        }
+        T.middleRows(q * nr, nr).noalias() = Dq.topLeftCorner(nr, nr) * Oq;
+      }
+      rloc.noalias() = O.transpose() * y;
+      rloc += floc;
+      if (A) Aloc.noalias() = O.transpose() * T;
+      // Scatter the owned rows (residual) and columns (matrix).
+      for (int j = 0; j < n; ++j) {
+        const int b = u[static_cast<std::size_t>(j)];
+        if (b < lo || b >= hi) continue;
+        for (int c = 0; c < 3; ++c) R[3 * b + c] += rloc[3 * j + c];
+        if (fint)
+          for (int c = 0; c < 2; ++c) (*fint)[3 * b + c] += rloc[3 * j + c] - floc[3 * j + c];
+        if (!A) continue;
+        kpos.resize(static_cast<std::size_t>(n));
+        const int* it = pat.adjacency_begin(b);
+        const int* first = it;
+        for (int i = 0; i < n; ++i) {
+          while (*it < u[static_cast<std::size_t>(i)]) ++it;
+          kpos[static_cast<std::size_t>(i)] = static_cast<int>(it - first);
+        }
+        for (int cc = 0; cc < 3; ++cc) {
+          double* col = values + outer[3 * b + cc];
+          for (int i = 0; i < n; ++i) {
+            double* blk = col + 3 * kpos[static_cast<std::size_t>(i)];
+            for (int c = 0; c < 3; ++c) blk[c] += Aloc(3 * i + c, 3 * j + cc);
+          }
+        }
+      }
+    }
+  }
+}
+
+}  // namespace maxentflow

@@ -1,0 +1,56 @@
+// maxentflow: sparse direct solvers for the saddle system (21), as policies.
+#pragma once
+
+#include <concepts>
+#include <string>
+
+#include <Eigen/SparseCore>
+#include <Eigen/UmfPackSupport>
+
+#include <maxentflow/core/error.hpp>
+
+namespace maxentflow {
+
+/// A linear-solver policy: analyze a structure once, factorize new values of
+/// that structure many times, solve.
+template <class S>
+concept LinearSolver = requires(S& s, const Eigen::SparseMatrix<double, Eigen::ColMajor, int>& A,
+                                const Eigen::VectorXd& b) {
+  s.analyze(A);
+  s.factorize(A);
+  { s.solve(b) } -> std::convertible_to<Eigen::VectorXd>;
+};
+
+/// UMFPACK (SuiteSparse) LU through Eigen: the system is indefinite and, with
+/// the Newton tau term, unsymmetric. The symbolic analysis (column ordering)
+/// is kept until analyze() is called again with a new structure.
+class UmfpackSolver {
+ public:
+  using Matrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+
+  void analyze(const Matrix& A) {
+    lu_.analyzePattern(A);
+    require(lu_.info() == Eigen::Success, "UMFPACK symbolic analysis failed", "UmfpackSolver::analyze");
+  }
+  void factorize(const Matrix& A) {
+    lu_.factorize(A);
+    require(lu_.info() == Eigen::Success,
+            detail::cat("UMFPACK factorization failed (status ", lu_.umfpackFactorizeReturncode(),
+                        "): the system is singular, e.g. a rigid-body mode is not constrained or a "
+                        "constraint is given twice"),
+            "UmfpackSolver::factorize");
+  }
+  Eigen::VectorXd solve(const Eigen::VectorXd& b) const {
+    Eigen::VectorXd x = lu_.solve(b);
+    require(lu_.info() == Eigen::Success, "UMFPACK solve failed", "UmfpackSolver::solve");
+    return x;
+  }
+  static constexpr const char* name() { return "UMFPACK"; }
+
+ private:
+  Eigen::UmfPackLU<Matrix> lu_;
+};
+
+static_assert(LinearSolver<UmfpackSolver>);
+
+}  // namespace maxentflow

@@ -1,0 +1,194 @@
+// maxentflow: direct (Picard) iteration, then Newton with the consistent
+// tangent, as the paper recommends (section "The stabilized viscoplastic formulation").
+#pragma once
+
+#include <algorithm>
+#include <chrono>
+#include <limits>
+#include <cmath>
+#include <cstdio>
+#include <iosfwd>
+#include <ostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include <maxentflow/core/error.hpp>
+#include <maxentflow/flow/stabilized_flow.hpp>
+#include <maxentflow/solver/linear_solver.hpp>
+
+namespace maxentflow {
+
+/// What NonlinearSolver needs from a system (FlowSystem is one).
+template <class S>
+concept NonlinearSystem =
+    requires(S& s, const Eigen::VectorXd& x, Eigen::VectorXd& r,
+             Eigen::SparseMatrix<double, Eigen::ColMajor, int>& A) {
+      { s.size() } -> std::convertible_to<int>;
+      { s.structure_generation() } -> std::convertible_to<long>;
+      s.assemble(x, Linearization::picard, A, r);
+      s.residual(x, r);
+      { s.relative_residual(r) } -> std::convertible_to<double>;
+      { s.velocity_norm(x) } -> std::convertible_to<double>;
+    };
+
+struct IterationRecord {
+  int iteration = 0;
+  Linearization kind = Linearization::picard;
+  double residual = 0.0;   ///< relative momentum residual at the start of the iteration
+  double increment = 0.0;  ///< |dv|_inf / |v|_inf of the update made
+  double step = 1.0;       ///< line-search step length
+};
+
+struct SolveReport {
+  bool converged = false;
+  int picard = 0, newton = 0;
+  double residual = 0.0, increment = 0.0;
+  double assembly_seconds = 0.0, factorization_seconds = 0.0, solve_seconds = 0.0;
+  std::vector<IterationRecord> history;
+  int iterations() const { return picard + newton; }
+  /// One line per iteration: it, kind, residual, increment, step.
+  std::string log() const {
+    std::ostringstream os;
+    char line[128];
+    for (const auto& h : history) {
+      std::snprintf(line, sizeof line, "  %3d %-6s residual %.3e  increment %.3e  step %.3g\n",
+                    h.iteration, h.kind == Linearization::picard ? "picard" : "newton", h.residual,
+                    h.increment, h.step);
+      os << line;
+    }
+    return os.str();
+  }
+};
+
+struct NonlinearSolverParams {
+  int max_iterations = 60;
+  int max_picard = 40;             ///< Picard iterations before Newton is forced
+  double switch_increment = 1e-2;  ///< Picard -> Newton when the increment falls below
+  bool newton = true;              ///< false: Picard only
+  double velocity_tol = 1e-9;
+  double residual_tol = 1e-9;
+  int line_search = 8;             ///< step halvings
+  std::ostream* log = nullptr;     ///< per-iteration log
+};
+
+/// Picard until the relative velocity increment drops below switch_increment
+/// (or max_picard iterations), then Newton with a backtracking line search on
+/// |R|; a Newton step the line search cannot make fall back to Picard.
+/// Converged when increment <= velocity_tol and residual <= residual_tol.
+template <LinearSolver Linear = UmfpackSolver>
+class NonlinearSolver {
+ public:
+  using Matrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+
+  using params = NonlinearSolverParams;
+
+  NonlinearSolver() = default;
+  explicit NonlinearSolver(params prm) : prm_(prm) {}
+  params& parameters() { return prm_; }
+  Linear& linear_solver() { return linear_; }
+
+  /// Solves R(X) = 0 from the start X (e.g. the previous step's fields; zero is
+  /// fine: the first Picard iteration is then a Newtonian solve).
+  template <NonlinearSystem System>
+  SolveReport solve(System& sys, Eigen::VectorXd& X) {
+    using clock = std::chrono::steady_clock;
+    auto seconds = [](clock::time_point a) {
+      return std::chrono::duration<double>(clock::now() - a).count();
+    };
+    SolveReport rep;
+    const int n = sys.size();
+    if (X.size() != n) {
+      Eigen::VectorXd Y = Eigen::VectorXd::Zero(n);
+      Y.head(std::min<Eigen::Index>(n, X.size())) = X.head(std::min<Eigen::Index>(n, X.size()));
+      X = Y;
+    }
+    Linearization phase = Linearization::picard;
+    double increment = std::numeric_limits<double>::infinity();
+    Eigen::VectorXd R, Rtry, Xtry, dx;
+    for (int it = 0; it < prm_.max_iterations; ++it) {
+      const Linearization kind = phase;
+      auto t0 = clock::now();
+      sys.assemble(X, kind, A_, R);
+      rep.assembly_seconds += seconds(t0);
+      const double res = sys.relative_residual(R);
+      rep.residual = res;
+      if (it > 0 && increment <= prm_.velocity_tol && res <= prm_.residual_tol) {
+        rep.converged = true;
+        break;
+      }
+      t0 = clock::now();
+      if (sys.structure_generation() != analyzed_generation_ || analyzed_size_ != n) {
+        linear_.analyze(A_);
+        analyzed_generation_ = sys.structure_generation();
+        analyzed_size_ = n;
+      }
+      linear_.factorize(A_);
+      rep.factorization_seconds += seconds(t0);
+      t0 = clock::now();
+      dx = linear_.solve(-R);
+      rep.solve_seconds += seconds(t0);
+      MAXENTFLOW_REQUIRE(dx.allFinite(),
+                         detail::cat("the linear solve gave NaN/Inf (singular system?) at iteration ",
+                                     it, "\n", rep.log()),
+                         "NonlinearSolver::solve");
+      double step = 1.0;
+      if (kind == Linearization::newton) {
+        const double phi0 = R.norm();
+        bool accepted = false;
+        for (int ls = 0; ls <= prm_.line_search; ++ls, step *= 0.5) {
+          Xtry = X + step * dx;
+          t0 = clock::now();
+          sys.residual(Xtry, Rtry);
+          rep.assembly_seconds += seconds(t0);
+          if (Rtry.norm() <= (1.0 - 1e-4 * step) * phi0) {
+            accepted = true;
+            break;
+          }
+        }
+        if (!accepted) {  // Newton is outside its basin: back to direct iteration
+          rep.history.push_back({it, kind, res, 0.0, 0.0});
+          ++rep.newton;
+          if (prm_.log) *prm_.log << "  newton line search failed; back to picard\n";
+          phase = Linearization::picard;
+          picard_since_switch_ = 0;
+          continue;
+        }
+      }
+      X += step * dx;
+      const double vnorm = sys.velocity_norm(X);
+      increment = step * sys.velocity_norm(dx) / (vnorm > 0 ? vnorm : 1.0);
+      rep.increment = increment;
+      rep.history.push_back({it, kind, res, increment, step});
+      (kind == Linearization::picard ? rep.picard : rep.newton) += 1;
+      if (prm_.log) {
+        char line[128];
+        std::snprintf(line, sizeof line, "  %3d %-6s residual %.3e  increment %.3e  step %.3g\n", it,
+                      kind == Linearization::picard ? "picard" : "newton", res, increment, step);
+        *prm_.log << line;
+      }
+      if (phase == Linearization::picard) ++picard_since_switch_;
+      if (phase == Linearization::picard && prm_.newton &&
+          (increment < prm_.switch_increment || picard_since_switch_ >= prm_.max_picard))
+        phase = Linearization::newton;
+    }
+    picard_since_switch_ = 0;
+    if (!rep.converged)
+      throw Error(detail::cat("no convergence in ", prm_.max_iterations, " iterations (residual ",
+                              rep.residual, ", increment ", rep.increment, "); history:\n", rep.log()),
+                  "NonlinearSolver::solve");
+    return rep;
+  }
+
+ private:
+  params prm_;
+  Linear linear_;
+  Matrix A_;
+  long analyzed_generation_ = -1;
+  int analyzed_size_ = -1;
+  int picard_since_switch_ = 0;
+};
+
+}  // namespace maxentflow
