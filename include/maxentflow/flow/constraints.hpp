@@ -26,6 +26,7 @@ struct ConstraintRow {
   double rhs = 0.0;
   int part = -1;
   int node = -1;  ///< the boundary node carrying the multiplier's hat function (-1: none)
+  Eigen::Vector2d direction = Eigen::Vector2d::Zero();  ///< constrained velocity direction
   Eigen::Vector2d force = Eigen::Vector2d::Zero();
 };
 
@@ -82,6 +83,9 @@ class ConstraintSet {
   /// row i is int N_i phi_a e ds . v_a = int N_i value ds. The measure is plain
   /// arc length also in axisymmetric problems (the multiplier then carries the
   /// 2 pi r, and sums to the total force); this keeps the rows regular on the axis.
+  /// A node that already carries a multiplier for a parallel direction (the
+  /// corner shared with an earlier part) gets none here: two would constrain
+  /// the same velocity twice and make the system singular.
   /// Returns the number of rows added (0 if no segment was chosen).
   int add_velocity(const Mesh& mesh, const FlowDiscretization& disc, const SegmentSelector& select,
                    Eigen::Vector2d direction, const Value& value, const std::string& part_name) {
@@ -122,8 +126,16 @@ class ConstraintSet {
         }
       }
     }
+    int added = 0;
     for (const auto& [node, dofs] : coef) {
+      const int nd = node;
+      const bool taken = std::any_of(rows_.begin(), rows_.end(), [&](const ConstraintRow& r) {
+        return r.node == nd && std::abs(r.direction.dot(direction)) > 1.0 - 1e-12;
+      });
+      if (taken) continue;
+      ++added;
       ConstraintRow row;
+      row.direction = direction;
       row.part = part;
       row.node = node;
       for (const auto& [dof, c] : dofs) {
@@ -134,7 +146,7 @@ class ConstraintSet {
       row.force = rhs_len[node].second * direction;
       rows_.push_back(std::move(row));
     }
-    return static_cast<int>(coef.size());
+    return added;
   }
 
   /// Fixes the pressure level: int p dOmega = mean * |Omega| (needed when the

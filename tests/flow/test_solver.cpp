@@ -1,0 +1,147 @@
+// The nonlinear solver: consistent Newton tangent, quadratic convergence,
+// thread-count independence, loud failures.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <random>
+
+#include "../support/flow_problems.hpp"
+
+using namespace maxentflow;
+using maxentflow::test::block_nodes;
+using maxentflow::test::FlowProblem;
+
+namespace {
+
+// Plane-strain compression of a block with a body force and a traction, so that
+// the flow is not homogeneous and Newton has work to do.
+FlowProblem<NortonHoff> compression(double n, bool perturbed = true) {
+  const double W = 4, H = 3, V = 0.1;
+  FlowProblem<NortonHoff> P(block_nodes(13, 10, W, H, perturbed), Geometry::plane_strain,
+                            NortonHoff(150.0, n, 1e-5));
+  const double tol = 1e-9;
+  P.velocity(on_line({0, 0}, {1, 0}, tol), {1, 0}, 0.0, "symmetry");
+  P.velocity(on_line({0, 0}, {0, 1}, tol), {0, 1}, 0.0, "bottom");
+  P.velocity(on_line({0, 0}, {0, 1}, tol), {1, 0}, 0.0, "bottom sticking");
+  P.velocity(on_line({0, H}, {0, 1}, tol), {0, 1}, -V, "top");
+  P.system->add_traction(on_line({W, 0}, {1, 0}, tol),
+                         [](const Eigen::Vector2d& x) { return Eigen::Vector2d(-5.0 * x.y(), 0); });
+  P.system->assembler().set_body_force(Eigen::Vector2d(0, -2.0));
+  return P;
+}
+
+}  // namespace
+
+TEST_CASE("the Newton tangent is the derivative of the residual", "[flow][solver]") {
+  for (double n : {0.2, 1.0}) {
+    CAPTURE(n);
+    auto P = compression(n);
+    NonlinearSolver<> solver;
+    Eigen::VectorXd X;
+    solver.solve(*P.system, X);
+    // Away from the solution: perturb it.
+    std::mt19937 rng(3);
+    std::normal_distribution<double> g;
+    Eigen::VectorXd dX(X.size());
+    for (Eigen::Index k = 0; k < X.size(); ++k) dX[k] = g(rng);
+    X += 0.05 * dX.cwiseProduct(X.cwiseAbs());
+    SystemPattern::Matrix A;
+    Eigen::VectorXd R, Rp, Rm;
+    P.system->assemble(X, Linearization::newton, A, R);
+    for (Eigen::Index k = 0; k < X.size(); ++k) dX[k] = g(rng) * (std::abs(X[k]) + 1e-3);
+    const double eps = 1e-6;
+    P.system->residual(X + eps * dX, Rp);
+    P.system->residual(X - eps * dX, Rm);
+    const Eigen::VectorXd fd = (Rp - Rm) / (2 * eps);
+    const Eigen::VectorXd an = A * dX;
+    CHECK((fd - an).norm() <= 1e-6 * an.norm());
+    // The Picard matrix is not the tangent when n != 1.
+    P.system->assemble(X, Linearization::picard, A, R);
+    const double picard_gap = (fd - A * dX).norm() / an.norm();
+    if (n != 1.0) CHECK(picard_gap > 1e-3);
+    else CHECK(picard_gap < 1e-6);
+  }
+}
+
+TEST_CASE("Newton converges quadratically near the solution", "[flow][solver]") {
+  auto P = compression(0.2);
+  NonlinearSolver<> solver;
+  Eigen::VectorXd X;
+  const auto rep = solver.solve(*P.system, X);
+  INFO(rep.log());
+  REQUIRE(rep.converged);
+  REQUIRE(rep.newton >= 2);
+  // Three consecutive full Newton steps in the asymptotic range: the observed
+  // order log(r2/r1) / log(r1/r0) is ~2 for a consistent tangent, ~1 otherwise.
+  int checked = 0;
+  const auto& h = rep.history;
+  for (std::size_t k = 0; k + 2 < h.size(); ++k) {
+    bool full = true;
+    for (std::size_t j = k; j <= k + 2; ++j)
+      full = full && h[j].kind == Linearization::newton && h[j].step == 1.0;
+    if (!full || h[k].residual > 1e-2 || h[k + 2].residual < 1e-13) continue;
+    const double order = std::log(h[k + 2].residual / h[k + 1].residual) /
+                         std::log(h[k + 1].residual / h[k].residual);
+    CAPTURE(k, h[k].residual, h[k + 1].residual, h[k + 2].residual, order);
+    CHECK(order > 1.6);
+    ++checked;
+  }
+  CHECK(checked >= 1);
+}
+
+TEST_CASE("results do not depend on the thread count", "[flow][solver]") {
+  const int threads = max_threads();
+  Eigen::VectorXd X1, X2;
+  {
+    set_threads(1);
+    auto P = compression(0.2);
+    NonlinearSolver<> s;
+    s.solve(*P.system, X1);
+  }
+  {
+    set_threads(std::max(2, threads));
+    auto P = compression(0.2);
+    NonlinearSolver<> s;
+    s.solve(*P.system, X2);
+  }
+  set_threads(threads);
+  CHECK((X1 - X2).norm() <= 1e-12 * X1.norm());
+}
+
+TEST_CASE("an unconstrained rigid-body mode fails loudly", "[flow][solver]") {
+  // Only the top plate: the block can slide sideways.
+  FlowProblem<NortonHoff> P(block_nodes(6, 6, 1, 1, false), Geometry::plane_strain, NortonHoff());
+  P.velocity(on_line({0, 1}, {0, 1}, 1e-9), {0, 1}, -0.1, "top");
+  NonlinearSolver<> solver;
+  Eigen::VectorXd X;
+  CHECK_THROWS_AS(solver.solve(*P.system, X), Error);
+}
+
+TEST_CASE("a solve that cannot converge in the allowed iterations throws with its history",
+          "[flow][solver]") {
+  auto P = compression(0.2);
+  NonlinearSolverParams prm;
+  prm.max_iterations = 2;
+  NonlinearSolver<> solver(prm);
+  Eigen::VectorXd X;
+  try {
+    solver.solve(*P.system, X);
+    FAIL("no exception");
+  } catch (const Error& e) {
+    CHECK_THAT(std::string(e.what()), Catch::Contains("no convergence") && Catch::Contains("picard"));
+  }
+}
+
+TEST_CASE("Norton-Hoff viscosity and its derivative", "[flow][material]") {
+  const NortonHoff m(150.0, 0.2, 1e-9);
+  for (double d : {1e-3, 0.05, 2.0}) {
+    const double h = 1e-6 * d;
+    const double fd = (m.viscosity(d + h).mu - m.viscosity(d - h).mu) / (2 * h);
+    CHECK(m.viscosity(d).dmu_dd_over_d * d == Approx(fd).epsilon(1e-7));
+    CHECK(m.viscosity(d).mu == Approx(150.0 * std::pow(std::sqrt(3.0) * d, -0.8)).epsilon(1e-9));
+    CHECK(m.flow_stress(d) == Approx(3 * 150.0 * std::pow(std::sqrt(3.0) * d, -0.8) * d).epsilon(1e-9));
+  }
+  CHECK(std::isfinite(m.viscosity(0.0).mu));
+  CHECK_THROWS_AS(NortonHoff(-1.0, 0.2), Error);
+  CHECK_THROWS_AS(NortonHoff(150.0, 0.2, 0.0), Error);
+}
