@@ -19,3 +19,7 @@
 #include <maxentflow/flow/flow_system.hpp>
 #include <maxentflow/solver/linear_solver.hpp>
 #include <maxentflow/solver/nonlinear_solver.hpp>
+#include <maxentflow/contact/rigid_tool.hpp>
+#include <maxentflow/contact/contact.hpp>
+#include <maxentflow/stepper/stepper.hpp>
+#include <maxentflow/stepper/results_writer.hpp>

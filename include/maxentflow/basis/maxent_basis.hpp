@@ -48,7 +48,7 @@ class MaxEntBasis {
     double tol0 = 1e-6;            ///< support cut-off on the prior weight
     double newton_tol = 1e-13;     ///< converged when |r| <= newton_tol * h (r: reproduction error)
     int max_iterations = 100;      ///< Newton iterations before the solve is declared failed
-    double hull_tol = 1e-12;       ///< a point within hull_tol * h of a hull facet lies on it
+    double hull_tol = 1e-10;       ///< a point within hull_tol * h of a hull facet lies on it
     bool warm_start = true;        ///< start each point's Newton at its predecessor's lambda
     int block = 64;                ///< warm-start chains restart every `block` points (so
                                    ///< results do not depend on the thread count)
@@ -281,7 +281,7 @@ class MaxEntBasis {
     scale_ = nodes_.cwiseAbs().maxCoeff();
     h_min_ = h_.minCoeff();
     pad_ = prm_.hull_tol * h_.maxCoeff() + 16 * std::numeric_limits<double>::epsilon() * scale_;
-    hull_ = detail::hull_halfspaces(Points(nodes_));
+    hull_ = detail::hull_halfspaces(Points(nodes_), on_hull_tol(h_min_));
     grid_.build(nodes_, radius_, beta_, h_, hull_, hull_pad());
     // Coincident nodes: any two closer than 1e-10 of their spacing.
     for (Eigen::Index a = 0; a < N; ++a) {
@@ -397,8 +397,16 @@ class MaxEntBasis {
   Info solve_interior(const Point& x, Workspace& ws, int m, double h_ref, const Point* lambda0,
                       bool gradients, int id) const {
     const Point start = lambda0 ? *lambda0 : Point::Zero();
-    const auto res = detail::solve_dual<Dim>(ws.dual, m, start, prm_.newton_tol * h_ref, prm_.max_iterations);
-    if (res.status != detail::DualStatus::converged) {
+    auto res = detail::solve_dual<Dim>(ws.dual, m, start, prm_.newton_tol * h_ref, prm_.max_iterations);
+    // Safeguard: a warm start predicted across a kink of lambda(x) (e.g. from a
+    // hull point) can start Newton where it cannot descend; restart cold.
+    if (res.status != detail::DualStatus::converged && lambda0)
+      res = detail::solve_dual<Dim>(ws.dual, m, Point::Zero(), prm_.newton_tol * h_ref, prm_.max_iterations);
+    // Very close to a hull corner the dual is so stiff that Newton stalls a few
+    // digits short of newton_tol; a reproduction error below 1e-8 h is accepted.
+    const bool attainable = res.status != detail::DualStatus::not_finite &&
+                            res.residual() <= 1e-8 * h_ref;
+    if (res.status != detail::DualStatus::converged && !attainable) {
       const char* why = res.status == detail::DualStatus::max_iterations       ? "no convergence"
                         : res.status == detail::DualStatus::line_search_failed ? "line search failed"
                                                                                : "non-finite values";
@@ -519,7 +527,7 @@ class MaxEntBasis {
         throw Error("too few support nodes on the hull facet", where_point(x, id));
       }
     }
-    for (const auto& F : detail::hull_halfspaces(Eigen::Matrix<double, D, Eigen::Dynamic>(za))) {
+    for (const auto& F : detail::hull_halfspaces(Eigen::Matrix<double, D, Eigen::Dynamic>(za), tol)) {
       const double s = F.n.dot(z) - F.c;
       if (s > tol) throw Error("point lies outside the convex hull of the nodes", where_point(x, id));
       if (std::abs(s) <= tol) return restrict_to_facet<D>(z, za, beta, F.n, F.c, tol, p, id, x);

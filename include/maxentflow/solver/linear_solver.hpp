@@ -46,6 +46,10 @@ class UmfpackSolver {
     return x;
   }
   static constexpr const char* name() { return "UMFPACK"; }
+  void control(int strategy, int ordering) {
+    if (strategy >= 0) lu_.umfpackControl()(UMFPACK_STRATEGY) = strategy;
+    if (ordering >= 0) lu_.umfpackControl()(UMFPACK_ORDERING) = ordering;
+  }
 
  private:
   Eigen::UmfPackLU<Matrix> lu_;

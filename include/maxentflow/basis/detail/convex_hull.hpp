@@ -8,10 +8,12 @@
 
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Surface_mesh.h>
+#include <CGAL/convex_hull_2.h>
 #include <CGAL/convex_hull_3.h>
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <numeric>
 #include <vector>
 
@@ -27,7 +29,8 @@ struct HalfSpace {
 };
 
 /// 1-D hull: the two end points.
-inline std::vector<HalfSpace<1>> hull_halfspaces(const Eigen::Matrix<double, 1, Eigen::Dynamic>& x) {
+inline std::vector<HalfSpace<1>> hull_halfspaces(const Eigen::Matrix<double, 1, Eigen::Dynamic>& x,
+                                                 double = 0.0) {
   const double lo = x.minCoeff(), hi = x.maxCoeff();
   HalfSpace<1> left, right;
   left.n(0) = -1;
@@ -39,36 +42,38 @@ inline std::vector<HalfSpace<1>> hull_halfspaces(const Eigen::Matrix<double, 1, 
   return {left, right};
 }
 
-/// 2-D hull by the monotone chain; collinear boundary points are dropped so each
-/// edge is one facet. Orientation with a relative tolerance `tol`.
+/// 2-D hull with CGAL's exact orientation predicates (a monotone chain with a
+/// tolerance loses true corners when round-off jitters collinear points, as it
+/// does after a few updated-Lagrangian steps). Then a vertex within `merge_tol`
+/// (a distance) of the line through its neighbours is dropped, so that each
+/// nearly straight side is one facet.
 inline std::vector<HalfSpace<2>> hull_halfspaces(const Eigen::Matrix<double, 2, Eigen::Dynamic>& x,
-                                                 double tol = 1e-14) {
-  const Eigen::Index n = x.cols();
-  std::vector<int> order(static_cast<std::size_t>(n));
-  std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](int a, int b) {
-    return x(0, a) < x(0, b) || (x(0, a) == x(0, b) && x(1, a) < x(1, b));
-  });
-  const double scale = (x.rowwise().maxCoeff() - x.rowwise().minCoeff()).norm();
-  auto cross = [&](int o, int a, int b) {
-    return (x(0, a) - x(0, o)) * (x(1, b) - x(1, o)) - (x(1, a) - x(1, o)) * (x(0, b) - x(0, o));
-  };
-  const double eps = tol * scale * scale;
-  std::vector<int> h(2 * static_cast<std::size_t>(n) + 1);
-  std::size_t k = 0;
-  for (int i : order) {  // lower hull
-    while (k >= 2 && cross(h[k - 2], h[k - 1], i) <= eps) --k;
-    h[k++] = i;
+                                                 double merge_tol = 0.0) {
+  using K = CGAL::Exact_predicates_inexact_constructions_kernel;
+  std::vector<K::Point_2> pts;
+  pts.reserve(static_cast<std::size_t>(x.cols()));
+  for (Eigen::Index i = 0; i < x.cols(); ++i) pts.emplace_back(x(0, i), x(1, i));
+  std::vector<K::Point_2> out;
+  CGAL::convex_hull_2(pts.begin(), pts.end(), std::back_inserter(out));  // counter-clockwise
+  std::vector<Eigen::Vector2d> h;
+  for (const auto& p : out) h.emplace_back(p.x(), p.y());
+  for (bool changed = true; changed && h.size() > 3;) {
+    changed = false;
+    for (std::size_t i = 0; i < h.size() && h.size() > 3; ++i) {
+      const Eigen::Vector2d& a = h[(i + h.size() - 1) % h.size()];
+      const Eigen::Vector2d& b = h[i];
+      const Eigen::Vector2d& c = h[(i + 1) % h.size()];
+      const Eigen::Vector2d e = c - a;
+      const double len = e.norm();
+      if (len > 0 && std::abs(e.x() * (b.y() - a.y()) - e.y() * (b.x() - a.x())) / len <= merge_tol) {
+        h.erase(h.begin() + static_cast<std::ptrdiff_t>(i));
+        changed = true;
+      }
+    }
   }
-  for (std::size_t j = order.size() - 1, t = k + 1; j-- > 0;) {  // upper hull
-    const int i = order[j];
-    while (k >= t && cross(h[k - 2], h[k - 1], i) <= eps) --k;
-    h[k++] = i;
-  }
-  h.resize(k > 0 ? k - 1 : 0);  // the last point repeats the first
   std::vector<HalfSpace<2>> hs;
   for (std::size_t i = 0; i < h.size(); ++i) {
-    const Eigen::Vector2d a = x.col(h[i]), b = x.col(h[(i + 1) % h.size()]);
+    const Eigen::Vector2d a = h[i], b = h[(i + 1) % h.size()];
     const Eigen::Vector2d e = b - a;
     const double len = e.norm();
     if (len == 0) continue;
@@ -84,7 +89,8 @@ inline std::vector<HalfSpace<2>> hull_halfspaces(const Eigen::Matrix<double, 2, 
 
 /// 3-D hull through CGAL; coplanar triangles give one facet each (duplicates are
 /// harmless: a point on a face lies on all of them).
-inline std::vector<HalfSpace<3>> hull_halfspaces(const Eigen::Matrix<double, 3, Eigen::Dynamic>& x) {
+inline std::vector<HalfSpace<3>> hull_halfspaces(const Eigen::Matrix<double, 3, Eigen::Dynamic>& x,
+                                                 double = 0.0) {
   using K = CGAL::Exact_predicates_inexact_constructions_kernel;
   using P = K::Point_3;
   std::vector<P> pts;

@@ -1,0 +1,139 @@
+#!/usr/bin/env python3
+"""PNG figures of a forming run written by maxentflow's ResultsWriter.
+
+  plot_forming.py DIR --maps pressure:1,50,100 velocity_y:100 \
+                      --force-tool "top plate" [--exact exact.csv]
+
+Maps: tripcolor of a VTU point field over the kept triangles (the integration
+mesh), with the tools' outlines from tools.csv; `velocity_x` / `velocity_y` pick
+a component. Curve: the tool force against its stroke from forces.csv, with the
+exact curve if given.
+"""
+import argparse
+import csv
+import os
+import sys
+import xml.etree.ElementTree as ET
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.tri as mtri  # noqa: E402
+
+
+def read_vtu(path):
+    root = ET.parse(path).getroot()
+    piece = root.find("UnstructuredGrid/Piece")
+    def values(node):
+        return [float(v) for v in node.text.split()]
+    pts = values(piece.find("Points/DataArray"))
+    x, y = pts[0::3], pts[1::3]
+    conn = [int(v) for v in piece.find("Cells/DataArray[@Name='connectivity']").text.split()]
+    tris = [conn[i:i + 3] for i in range(0, len(conn), 3)]
+    fields = {}
+    for da in piece.find("PointData"):
+        comps = int(da.get("NumberOfComponents", "1"))
+        v = values(da)
+        if comps == 1:
+            fields[da.get("Name")] = v
+        else:
+            for c, s in enumerate("xyz"[:comps]):
+                fields[da.get("Name") + "_" + s] = v[c::comps]
+    return x, y, tris, fields
+
+
+def read_csv(path):
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
+def tool_outlines(directory, step):
+    path = os.path.join(directory, "tools.csv")
+    if not os.path.exists(path):
+        return {}
+    out = {}
+    for r in read_csv(path):
+        if int(r["step"]) == step:
+            out.setdefault(r["tool"], ([], []))
+            out[r["tool"]][0].append(float(r["x"]))
+            out[r["tool"]][1].append(float(r["y"]))
+    return out
+
+
+LABELS = {"pressure": "pressure p", "velocity_x": "horizontal velocity", "velocity_y": "vertical velocity",
+          "strain_rate": "equivalent strain rate", "effective_strain": "effective strain"}
+
+
+def plot_map(directory, prefix, field, step):
+    vtu = os.path.join(directory, "%s_%04d.vtu" % (prefix, step))
+    if not os.path.exists(vtu):
+        print("plot_forming: no %s, skipped" % vtu, file=sys.stderr)
+        return
+    x, y, tris, fields = read_vtu(vtu)
+    tri = mtri.Triangulation(x, y, tris)
+    fig, ax = plt.subplots(figsize=(6.4, 5.2))
+    v = fields[field]
+    lo, hi = min(v), max(v)
+    scale = max(abs(lo), abs(hi), 1e-300)
+    if hi - lo <= 1e-6 * scale:  # uniform up to round-off: show one colour, not the noise
+        mid = 0.5 * (lo + hi)
+        lo, hi = mid - 0.01 * scale, mid + 0.01 * scale
+    pc = ax.tripcolor(tri, v, shading="gouraud", cmap="jet", vmin=lo, vmax=hi)
+    ax.triplot(tri, color="k", lw=0.15, alpha=0.35)
+    xmin, xmax, ymin, ymax = min(x), max(x), min(y), max(y)
+    pad = 0.08 * max(xmax - xmin, ymax - ymin)
+    for name, (tx, ty) in tool_outlines(directory, step).items():
+        ax.plot(tx, ty, color="0.3", lw=2.5)
+    ax.set_xlim(xmin - pad, xmax + pad)
+    ax.set_ylim(ymin - pad, ymax + pad)
+    ax.set_aspect("equal")
+    fig.colorbar(pc, ax=ax, label=LABELS.get(field, field))
+    ax.set_title("%s, step %d" % (LABELS.get(field, field), step))
+    fig.tight_layout()
+    out = os.path.join(directory, "%s_step%d.png" % (field, step))
+    fig.savefig(out, dpi=130)
+    plt.close(fig)
+
+
+def plot_force(directory, tool, exact):
+    rows = [r for r in read_csv(os.path.join(directory, "forces.csv")) if r["tool"] == tool]
+    if not rows:
+        return
+    stroke = [float(r["stroke"]) for r in rows]
+    fx = [float(r["fx"]) for r in rows]
+    fy = [float(r["fy"]) for r in rows]
+    use_y = max(abs(v) for v in fy) >= max(abs(v) for v in fx)
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    ax.plot(stroke, fy if use_y else fx, "o-", ms=3, label="maxentflow")
+    if exact:
+        e = read_csv(os.path.join(directory, exact))
+        ax.plot([float(r["stroke"]) for r in e], [float(r["force_exact"]) for r in e], "k--",
+                label="exact (homogeneous flow)")
+    ax.set_xlabel("stroke")
+    ax.set_ylabel("force on the %s (%s)" % (tool, "y" if use_y else "x"))
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, "force_stroke.png"), dpi=130)
+    plt.close(fig)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("directory")
+    ap.add_argument("--prefix", default="step")
+    ap.add_argument("--maps", nargs="*", default=[], help="field:step,step,...")
+    ap.add_argument("--force-tool")
+    ap.add_argument("--exact")
+    a = ap.parse_args()
+    for spec in a.maps:
+        field, steps = spec.split(":")
+        for s in steps.split(","):
+            plot_map(a.directory, a.prefix, field, int(s))
+    if a.force_tool:
+        plot_force(a.directory, a.force_tool, a.exact)
+
+
+if __name__ == "__main__":
+    main()

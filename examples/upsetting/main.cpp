@@ -1,0 +1,121 @@
+// Example E1 (spec section 3): upsetting of a cylindrical billet between flat,
+// frictionless plates; axisymmetric by default, --plane-strain for a strip.
+//
+//   upsetting                                 (E1: 21 x 25 nodes, 100 steps, dt = 1)
+//   upsetting --plane-strain --steps 50 --out-dir /tmp/strip
+//   upsetting --no-plots --check 1e-6         (exit 1 if the plate force misses V2/V1)
+//
+// Frictionless upsetting is homogeneous: the billet stays a rectangle and the
+// plate force is the exact V2 (V1) force on each configuration; exact.csv
+// compares them step by step.
+#include <CLI/CLI.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <sstream>
+
+#include <maxentflow/maxentflow.hpp>
+
+#include "common/plotting.hpp"
+
+namespace fs = std::filesystem;
+using namespace maxentflow;
+
+int main(int argc, char** argv) {
+  CLI::App app{"maxentflow E1: frictionless upsetting (paper Fig. 5)"};
+  bool plane_strain = false, no_plots = false;
+  int nx = 21, ny = 25, steps = 100, vtu_every = 10;
+  double radius = 10, height = 12, V = 0.06, dt = 1.0, gamma = 1.6, Cs = 0.5, mu0 = 150, n = 0.2;
+  double alpha = 1.3, check = -1;
+  std::string out = "results/upsetting";
+  app.add_flag("--plane-strain", plane_strain, "Plane strain (a strip of half width --radius) instead of axisymmetric");
+  app.add_option("--nx", nx, "Nodes across the radius (half width)")->check(CLI::Range(3, 2000));
+  app.add_option("--ny", ny, "Nodes along the height")->check(CLI::Range(3, 2000));
+  app.add_option("--steps", steps, "Time steps")->check(CLI::Range(1, 100000));
+  app.add_option("--dt", dt, "Time step")->check(CLI::PositiveNumber);
+  app.add_option("--radius", radius, "Billet radius (half width in plane strain)")->check(CLI::PositiveNumber);
+  app.add_option("--height", height, "Billet height")->check(CLI::PositiveNumber);
+  app.add_option("--velocity", V, "Top plate speed")->check(CLI::PositiveNumber);
+  app.add_option("--gamma", gamma, "Max-ent locality gamma")->check(CLI::PositiveNumber);
+  app.add_option("--Cs", Cs, "Stabilization constant Cs (Eq. 14)")->check(CLI::NonNegativeNumber);
+  app.add_option("--alpha", alpha, "Alpha-shape parameter (circumradius <= alpha h)")->check(CLI::PositiveNumber);
+  app.add_option("--mu0", mu0, "Norton-Hoff mu0")->check(CLI::PositiveNumber);
+  app.add_option("--n", n, "Norton-Hoff exponent n")->check(CLI::PositiveNumber);
+  app.add_option("--vtu-every", vtu_every, "Write a VTU every this many steps (and at steps 1, mid, last)")
+      ->check(CLI::Range(1, 100000));
+  app.add_option("--out-dir", out, "Results folder");
+  app.add_flag("--no-plots", no_plots, "Skip the PNG figures");
+  app.add_option("--check", check, "Fail (exit 1) if the plate force misses the exact one by more than this");
+  CLI11_PARSE(app, argc, argv);
+
+  const bool axi = !plane_strain;
+  const fs::path dir(out);
+  try {
+    Eigen::Matrix2Xd x(2, nx * ny);
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i) x.col(j * nx + i) << radius * i / (nx - 1), height * j / (ny - 1);
+    StepperParams prm;
+    prm.geometry = axi ? Geometry::axisymmetric : Geometry::plane_strain;
+    prm.dt = dt;
+    prm.gamma = gamma;
+    prm.mesh.alpha = alpha;
+    prm.stabilization.Cs = Cs;
+    // d_min far below the process strain rate V / H (see NortonHoff).
+    const NortonHoff material(mu0, n, 1e-6 * V / height);
+    Stepper<NortonHoff> sim(x, material, prm);
+    const double wide = 100 * (radius + height);
+    sim.add_tool(flat_plate("bottom plate", {0, 0}, {0, 1}, wide));
+    RigidTool top = flat_plate("top plate", {0, height}, {0, -1}, wide);
+    top.set_velocity({0, -V});
+    sim.add_tool(top);
+    sim.add_velocity_condition({axi ? "axis" : "symmetry", on_line({0, 0}, {1, 0}, 1e-9 * radius),
+                                {1, 0}, 0.0});
+    sim.set_log(&std::cout);
+    ResultsWriter results(dir);
+    CsvTable exact({"step", "time", "stroke", "height", "radius", "force", "force_exact",
+                    "rel_error", "force_continuum"});
+    double worst = 0;
+    for (int k = 1; k <= steps; ++k) {
+      const auto& r = sim.step();
+      const bool vtu = k == 1 || k == steps || k == (steps + 1) / 2 || k % vtu_every == 0;
+      results.record(sim, vtu);
+      // Exact force on the solved configuration (its measured height and radius).
+      const auto& xs = sim.nodes_solved();
+      const double H = xs.row(1).maxCoeff() - xs.row(1).minCoeff(), R = xs.row(0).maxCoeff();
+      const double e = V / H, d = axi ? e : 2 * e / std::sqrt(3.0);
+      const double mu = material.viscosity(d).mu;
+      const double F = axi ? 3 * mu * e * M_PI * R * R : 4 * mu * e * R;
+      // The continuum path R^2 = R0^2 H0 / H (R = R0 H0 / H): differs from the
+      // x += v dt path (Eq. 18) by O(dt).
+      const double Rc = axi ? radius * std::sqrt(height / H) : radius * height / H;
+      const double Fc = axi ? 3 * mu * e * M_PI * Rc * Rc : 4 * mu * e * Rc;
+      const double Fh = r.tool_force[1].y(), err = std::abs(Fh - F) / F;
+      worst = std::max(worst, err);
+      exact.cell(k).cell(r.time - r.dt).cell(r.tool_stroke[1]).cell(H).cell(R).cell(Fh).cell(F)
+          .cell(err).cell(Fc);
+      exact.end_row();
+    }
+    exact.write(dir / "exact.csv");
+    double total = 0;
+    for (const auto& r : sim.history()) total += r.seconds;
+    std::cout << "upsetting: " << steps << " steps, " << x.cols() << " nodes, " << total
+              << " s; plate force vs exact (V" << (axi ? 2 : 1) << "): max relative error " << worst
+              << "\nresults in " << dir << " (step.pvd: open in ParaView)\n";
+    if (!no_plots) {
+      std::ostringstream args;
+      const int mid = (steps + 1) / 2;
+      args << '"' << dir.string() << "\" --maps pressure:1," << mid << ',' << steps
+           << " velocity_y:" << steps << " --force-tool \"top plate\" --exact exact.csv";
+      examples::run_plot_script(fs::path(MAXENTFLOW_EXAMPLE_DIR) / "../common/plot_forming.py", args.str());
+    }
+    if (check >= 0 && !(worst <= check)) {
+      std::cerr << "check failed: plate force error " << worst << " > " << check << "\n";
+      return 1;
+    }
+  } catch (const Error& e) {
+    std::cerr << "upsetting failed: " << e.what() << "\n";
+    return 2;
+  }
+  return 0;
+}

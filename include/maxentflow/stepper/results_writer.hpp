@@ -1,0 +1,81 @@
+// maxentflow: what a forming run leaves on disk: a VTU per output step with a
+// PVD time series (ParaView), forces.csv, tools.csv (tool outlines for plots).
+// Every file is written whole (temporary file + rename).
+#pragma once
+
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include <maxentflow/io/csv.hpp>
+#include <maxentflow/io/vtk.hpp>
+
+namespace maxentflow {
+
+class ResultsWriter {
+ public:
+  explicit ResultsWriter(std::filesystem::path dir, std::string prefix = "step")
+      : dir_(std::move(dir)), prefix_(std::move(prefix)), pvd_(dir_ / (prefix_ + ".pvd")),
+        forces_({"step", "time", "tool", "stroke", "fx", "fy"}),
+        tools_({"step", "tool", "x", "y"}) {
+    std::filesystem::create_directories(dir_);
+  }
+
+  const std::filesystem::path& directory() const { return dir_; }
+
+  /// After a step: appends the tool forces (on the configuration the step
+  /// solved) and, if `vtu`, writes that configuration with its fields.
+  template <class Stepper>
+  void record(const Stepper& s, bool vtu) {
+    const auto& r = s.history().back();
+    const double t0 = r.time - r.dt;  // the solved configuration is the step's start
+    for (std::size_t k = 0; k < s.tools().size(); ++k) {
+      forces_.cell(r.step).cell(t0).cell(s.tools()[k].name()).cell(r.tool_stroke[k]);
+      forces_.cell(r.tool_force[k].x()).cell(r.tool_force[k].y());
+      forces_.end_row();
+    }
+    forces_.write(dir_ / "forces.csv");
+    if (!vtu) return;
+    char name[64];
+    std::snprintf(name, sizeof name, "%s_%04d.vtu", prefix_.c_str(), r.step);
+    const auto& mesh = s.mesh();
+    const auto n = s.nodes_solved().cols();
+    std::vector<int> boundary(static_cast<std::size_t>(n), 0);
+    for (int a : mesh.boundary_nodes()) boundary[static_cast<std::size_t>(a)] = 1;
+    VtuWriter w;
+    w.points(s.nodes_solved())
+        .triangles(mesh.triangles())
+        .point_vector("velocity", s.velocity())
+        .point_scalar("pressure", s.pressure())
+        .point_scalar("strain_rate", s.strain_rate())
+        .point_scalar("effective_strain", s.effective_strain())
+        .point_scalar("boundary", boundary)
+        .point_scalar("contact", s.contact_flags())
+        .point_scalar("h", mesh.h());
+    w.write(dir_ / name);
+    pvd_.add(t0, name);
+    pvd_.write();
+    // Tool outlines in the same (step start) position.
+    for (std::size_t k = 0; k < s.tools().size(); ++k) {
+      const auto& tool = s.tools()[k];
+      const Eigen::Matrix2Xd p = tool.polyline(mesh.h().mean());
+      const Eigen::Vector2d back = -s.history().back().dt * tool.velocity();
+      for (Eigen::Index i = 0; i < p.cols(); ++i) {
+        tools_.cell(r.step).cell(tool.name()).cell(p(0, i) + back.x()).cell(p(1, i) + back.y());
+        tools_.end_row();
+      }
+    }
+    tools_.write(dir_ / "tools.csv");
+  }
+
+ private:
+  std::filesystem::path dir_;
+  std::string prefix_;
+  PvdCollection pvd_;
+  CsvTable forces_, tools_;
+};
+
+}  // namespace maxentflow

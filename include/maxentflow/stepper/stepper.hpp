@@ -1,0 +1,357 @@
+// maxentflow: the updated-Lagrangian forming simulation (Eq. 18): per step,
+// Delaunay + alpha-shape, max-ent basis, contact active set + flow solve,
+// x += v dt, tools move.
+#pragma once
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <optional>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include <maxentflow/basis/maxent_basis.hpp>
+#include <maxentflow/contact/contact.hpp>
+#include <maxentflow/contact/rigid_tool.hpp>
+#include <maxentflow/core/error.hpp>
+#include <maxentflow/flow/constraints.hpp>
+#include <maxentflow/flow/flow_discretization.hpp>
+#include <maxentflow/flow/flow_system.hpp>
+#include <maxentflow/material/norton_hoff.hpp>
+#include <maxentflow/mesh/integration_mesh.hpp>
+#include <maxentflow/solver/nonlinear_solver.hpp>
+
+namespace maxentflow {
+
+struct StepperParams {
+  Geometry geometry = Geometry::plane_strain;
+  double dt = 1.0;
+  double gamma = 1.6;                            ///< max-ent locality, beta_a = gamma / h_a^2
+  IntegrationMesh<Traits<2>>::params mesh;       ///< alpha-shape (alpha = 1.3 h)
+  FlowDiscretizationParams discretization;
+  StabilizationParams stabilization;             ///< Cs
+  NonlinearSolverParams solver;
+  ToolContact::params contact;
+  int max_active_set_iterations = 12;
+  int max_retries = 4;          ///< dt halvings before a failed step stops the run
+  double penetration_tol = 0.05;  ///< a node deeper than this * h in a tool fails the step
+};
+
+/// What one step did (also one line of the progress log).
+struct StepRecord {
+  int step = 0;
+  double time = 0.0;      ///< at the end of the step
+  double dt = 0.0;        ///< the step's size
+  int substeps = 1;       ///< > 1 if the step was retried with a smaller dt
+  int picard = 0, newton = 0, active_set_iterations = 0;
+  int contact_nodes = 0;
+  std::vector<Eigen::Vector2d> tool_force;  ///< force on each tool, configuration at the step start
+  std::vector<double> tool_stroke;          ///< each tool's travel at the step start
+  double seconds = 0.0, mesh_seconds = 0.0, basis_seconds = 0.0, solve_seconds = 0.0,
+         post_seconds = 0.0;
+  std::string note;  ///< retries and their reasons
+};
+
+/// A fixed velocity condition v . e = value on the boundary chosen by a selector,
+/// re-applied on each configuration (symmetry lines, the axis, a clamped edge).
+struct VelocityCondition {
+  std::string name;
+  SegmentSelector select;
+  Eigen::Vector2d direction;
+  double value = 0.0;
+};
+
+/// The forming simulation: nodes that carry the material, rigid tools that move.
+/// Composes IntegrationMesh, MaxEntBasis, FlowDiscretization, FlowSystem<Material>
+/// (StabilizedFlowAssembler + constraints), ToolContact and NonlinearSolver<Linear>.
+template <ViscosityLaw Material, LinearSolver Linear = UmfpackSolver>
+class Stepper {
+ public:
+  using Mesh = IntegrationMesh<Traits<2>>;
+  using Basis = MaxEntBasis<2>;
+
+  Stepper(Eigen::Matrix2Xd nodes, Material material, StepperParams prm)
+      : prm_(std::move(prm)), material_(std::move(material)), x_(std::move(nodes)) {
+    require(prm_.dt > 0 && std::isfinite(prm_.dt), detail::cat("dt must be positive, got ", prm_.dt),
+            "Stepper");
+    const auto n = x_.cols();
+    V_ = Eigen::VectorXd::Zero(3 * n);
+    v_nodal_ = Eigen::Matrix2Xd::Zero(2, n);
+    p_nodal_ = Eigen::VectorXd::Zero(n);
+    d_nodal_ = Eigen::VectorXd::Zero(n);
+    strain_ = Eigen::VectorXd::Zero(n);
+    contact_flag_.assign(static_cast<std::size_t>(n), 0);
+  }
+
+  int add_tool(RigidTool tool) {
+    tools_.push_back(std::move(tool));
+    contacts_.emplace_back(prm_.contact);
+    return static_cast<int>(tools_.size()) - 1;
+  }
+  void add_velocity_condition(VelocityCondition c) { conditions_.push_back(std::move(c)); }
+  void set_log(std::ostream* log) { log_ = log; }
+
+  const StepperParams& parameters() const { return prm_; }
+  StepperParams& parameters() { return prm_; }
+  const Material& material() const { return material_; }
+  const Eigen::Matrix2Xd& nodes() const { return x_; }
+  double time() const { return time_; }
+  int steps_done() const { return step_; }
+  const std::vector<RigidTool>& tools() const { return tools_; }
+  const std::vector<StepRecord>& history() const { return history_; }
+
+  // Fields of the last solved configuration (the one at the start of the last
+  // step; `nodes_solved()` are its positions).
+  const Eigen::Matrix2Xd& nodes_solved() const { return x_solved_; }
+  const Mesh& mesh() const { return *mesh_; }
+  const Eigen::Matrix2Xd& velocity() const { return v_nodal_; }
+  const Eigen::VectorXd& pressure() const { return p_nodal_; }
+  const Eigen::VectorXd& strain_rate() const { return d_nodal_; }
+  /// Effective (equivalent) plastic strain accumulated at the nodes, int d dt.
+  const Eigen::VectorXd& effective_strain() const { return strain_; }
+  /// 0: free, k + 1: in contact with tool k (last solved configuration).
+  const std::vector<int>& contact_flags() const { return contact_flag_; }
+  /// The unknowns of the last solve (velocity and pressure coefficients, multipliers).
+  const Eigen::VectorXd& solution() const { return X_; }
+
+  /// One step of dt; a failed attempt (no convergence, inverted or penetrating
+  /// configuration) is retried as two half steps, up to max_retries halvings.
+  /// Throws Error if it cannot recover; the state is then that of the step start.
+  const StepRecord& step() {
+    const auto t0 = std::chrono::steady_clock::now();
+    StepRecord rec;
+    rec.step = step_ + 1;
+    rec.dt = prm_.dt;
+    const State saved = save();
+    std::string failures;
+    for (int level = 0; level <= prm_.max_retries; ++level) {
+      const int sub = 1 << level;
+      try {
+        StepRecord r = rec;
+        r.substeps = sub;
+        for (int k = 0; k < sub; ++k) advance(prm_.dt / sub, r, k == 0);
+        rec = r;
+        break;
+      } catch (const Error& e) {
+        restore(saved);
+        failures += detail::cat("  attempt with dt/", sub, " failed: ", e.what(), "\n");
+        if (level == prm_.max_retries)
+          throw Error(detail::cat("step ", step_ + 1, " failed after ", prm_.max_retries,
+                                  " dt halvings:\n", failures),
+                      "Stepper::step");
+      }
+    }
+    rec.note = failures;
+    ++step_;
+    rec.time = time_;
+    rec.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    history_.push_back(rec);
+    if (log_) print(*log_, rec);
+    return history_.back();
+  }
+
+  /// One progress line: step, time, strokes, iterations, contact, forces, wall time.
+  static void print(std::ostream& os, const StepRecord& r) {
+    char buf[256];
+    std::snprintf(buf, sizeof buf, "step %4d  t %-9.4g dt %-8.3g picard %2d newton %2d  as %d  contact %3d",
+                  r.step, r.time, r.dt / r.substeps, r.picard, r.newton, r.active_set_iterations,
+                  r.contact_nodes);
+    os << buf;
+    for (std::size_t k = 0; k < r.tool_force.size(); ++k) {
+      std::snprintf(buf, sizeof buf, "  [%zu] stroke %.4g F (%.5g, %.5g)", k, r.tool_stroke[k],
+                    r.tool_force[k].x(), r.tool_force[k].y());
+      os << buf;
+    }
+    std::snprintf(buf, sizeof buf, "  %.3f s%s\n", r.seconds, r.substeps > 1 ? "  (retried)" : "");
+    os << buf;
+  }
+
+ private:
+  struct State {
+    Eigen::Matrix2Xd x;
+    Eigen::VectorXd V, strain;
+    Eigen::Matrix2Xd v_nodal;
+    std::vector<Eigen::Vector2d> tool_disp;
+    double time;
+  };
+  State save() const {
+    State s{x_, V_, strain_, v_nodal_, {}, time_};
+    for (const auto& t : tools_) s.tool_disp.push_back(t.displacement());
+    return s;
+  }
+  void restore(const State& s) {
+    x_ = s.x;
+    V_ = s.V;
+    strain_ = s.strain;
+    v_nodal_ = s.v_nodal;
+    time_ = s.time;
+    for (std::size_t k = 0; k < tools_.size(); ++k)
+      tools_[k].translate(s.tool_disp[k] - tools_[k].displacement());
+  }
+
+  using clock = std::chrono::steady_clock;
+  static double since(clock::time_point t) {
+    return std::chrono::duration<double>(clock::now() - t).count();
+  }
+
+  // Solves the configuration x_ for a step of dt, then moves nodes and tools.
+  void advance(double dt, StepRecord& rec, bool first) {
+    auto t = clock::now();
+    auto mesh = std::make_shared<Mesh>(prm_.mesh);
+    mesh->build(x_);
+    rec.mesh_seconds += since(t);
+    t = clock::now();
+    typename Basis::params bp;
+    bp.gamma = prm_.gamma;
+    auto basis = std::make_shared<Basis>(x_, mesh->h(), bp);
+    auto disc = std::make_shared<FlowDiscretization>(*mesh, *basis, prm_.geometry, prm_.discretization);
+    const BasisTable<2> at_nodes = basis->evaluate(x_, true);
+    rec.basis_seconds += since(t);
+    t = clock::now();
+    FlowSystem<Material> sys(*mesh, *disc, material_, prm_.stabilization);
+    for (const auto& c : conditions_)
+      sys.constraints().add_velocity(*mesh, *disc, c.select, c.direction,
+                                     [v = c.value](const Eigen::Vector2d&) { return v; }, c.name);
+    std::vector<int> part(tools_.size());
+    for (std::size_t k = 0; k < tools_.size(); ++k) {
+      part[k] = sys.constraints().add_part("tool " + tools_[k].name());
+      contacts_[k].detect(*mesh, tools_[k], v_nodal_, dt);
+    }
+    // Start from the previous step's velocity and pressure coefficients.
+    const int N = static_cast<int>(x_.cols());
+    NonlinearSolverParams sp = prm_.solver;
+    NonlinearSolver<Linear> solver(sp);
+    Eigen::VectorXd X;
+    Eigen::Matrix2Xd v(2, N);
+    int as = 0;
+    for (;; ++as) {
+      for (std::size_t k = 0; k < tools_.size(); ++k) {
+        sys.constraints().clear_part(part[k]);
+        contacts_[k].add_rows(sys.constraints(), part[k], *mesh, *disc, *basis, tools_[k], dt);
+      }
+      X = Eigen::VectorXd::Zero(sys.size());
+      X.head(3 * N) = V_;
+      const SolveReport rep = solver.solve(sys, X);
+      rec.picard += rep.picard;
+      rec.newton += rep.newton;
+      nodal_velocity(at_nodes, X, v);
+      int changes = 0;
+      for (std::size_t k = 0; k < tools_.size(); ++k)
+        changes += contacts_[k].update(sys.constraints(), part[k], X, N, v, tools_[k], dt);
+      if (changes == 0) break;
+      if (as + 1 >= prm_.max_active_set_iterations)
+        throw Error(detail::cat("the contact active set did not settle in ", as + 1, " iterations"),
+                    "Stepper::advance");
+    }
+    rec.active_set_iterations += as + 1;
+    rec.solve_seconds += since(t);
+    t = clock::now();
+    // Post-processing on this configuration; forces at the step start.
+    if (first) {
+      rec.tool_force.assign(tools_.size(), Eigen::Vector2d::Zero());
+      rec.tool_stroke.assign(tools_.size(), 0.0);
+      for (std::size_t k = 0; k < tools_.size(); ++k) {
+        rec.tool_force[k] = sys.constraints().reaction(part[k], X, N);
+        rec.tool_stroke[k] = tools_[k].stroke();
+      }
+      rec.contact_nodes = 0;
+      std::fill(contact_flag_.begin(), contact_flag_.end(), 0);
+      for (std::size_t k = 0; k < tools_.size(); ++k)
+        for (const auto& c : contacts_[k].points())
+          if (c.active) {
+            contact_flag_[static_cast<std::size_t>(c.node)] = static_cast<int>(k) + 1;
+            ++rec.contact_nodes;
+          }
+    }
+    X_ = X;
+    V_ = X.head(3 * N);
+    v_nodal_ = v;
+    mesh_ = mesh;
+    x_solved_ = x_;
+    nodal_fields(at_nodes, X, dt);
+    // Eq. (18): the nodes move with the material velocity at their position.
+    x_ += dt * v;
+    MAXENTFLOW_REQUIRE(x_.allFinite(), "node positions became NaN", "Stepper::advance");
+    for (auto& tool : tools_) tool.move(dt);
+    time_ += dt;
+    // Nodes in contact end the step on the tool (the condition of the step);
+    // the weak (hat-multiplier) imposition leaves O(1e-6 h) scatter that would
+    // make a flat contact face jagged and the max-ent dual stiff there.
+    for (std::size_t k = 0; k < tools_.size(); ++k)
+      for (const auto& c : contacts_[k].points()) {
+        if (!c.active) continue;
+        const ToolProjection pr = tools_[k].closest(x_.col(c.node));
+        if (std::abs(pr.gap) <= prm_.penetration_tol * c.h) x_.col(c.node) -= pr.gap * pr.normal;
+      }
+    for (std::size_t k = 0; k < tools_.size(); ++k)
+      for (int a : mesh->boundary_nodes()) {
+        const double g = tools_[k].gap(x_.col(a));
+        MAXENTFLOW_REQUIRE(g >= -prm_.penetration_tol * mesh->h()(a),
+                           detail::cat("node ", a, " penetrates tool '", tools_[k].name(), "' by ", -g),
+                           "Stepper::advance");
+      }
+    rec.post_seconds += since(t);
+  }
+
+  // v(x_a) = sum_b p_b(x_a) V_b: max-ent is not interpolating inside, so the
+  // coefficients are not the nodal values.
+  static void nodal_velocity(const BasisTable<2>& tab, const Eigen::VectorXd& X, Eigen::Matrix2Xd& v) {
+    for (int a = 0; a < tab.size(); ++a) {
+      const auto nodes = tab.nodes(a);
+      const auto p = tab.values(a);
+      Eigen::Vector2d s = Eigen::Vector2d::Zero();
+      for (std::size_t j = 0; j < nodes.size(); ++j) s += p[j] * X.segment<2>(3 * nodes[j]);
+      v.col(a) = s;
+    }
+  }
+
+  void nodal_fields(const BasisTable<2>& tab, const Eigen::VectorXd& X, double dt) {
+    const bool axi = prm_.geometry == Geometry::axisymmetric;
+    for (int a = 0; a < tab.size(); ++a) {
+      const auto nodes = tab.nodes(a);
+      const auto p = tab.values(a);
+      const auto g = tab.gradients(a);
+      double pr = 0;
+      Eigen::Matrix2d L = Eigen::Matrix2d::Zero();  // velocity gradient
+      double vr = 0;
+      for (std::size_t j = 0; j < nodes.size(); ++j) {
+        const int b = nodes[j];
+        pr += p[j] * X[3 * b + 2];
+        vr += p[j] * X[3 * b];
+        L.row(0) += X[3 * b] * g.col(static_cast<Eigen::Index>(j)).transpose();
+        L.row(1) += X[3 * b + 1] * g.col(static_cast<Eigen::Index>(j)).transpose();
+      }
+      const Eigen::Matrix2d D = 0.5 * (L + L.transpose());
+      double dtt = 0.0;  // hoop rate v_r / r; on the axis its limit dv_r/dr
+      if (axi) dtt = x_(0, a) > 1e-12 * mesh_h_scale(a) ? vr / x_(0, a) : L(0, 0);
+      const double DD = D.squaredNorm() + dtt * dtt;
+      p_nodal_[a] = pr;
+      d_nodal_[a] = std::sqrt(2.0 / 3.0 * DD);
+      strain_[a] += d_nodal_[a] * dt;
+    }
+  }
+  double mesh_h_scale(int a) const { return mesh_ ? mesh_->h()(a) : 1.0; }
+
+  StepperParams prm_;
+  Material material_;
+  Eigen::Matrix2Xd x_, x_solved_;
+  Eigen::VectorXd V_, X_;
+  Eigen::Matrix2Xd v_nodal_;
+  Eigen::VectorXd p_nodal_, d_nodal_, strain_;
+  std::vector<int> contact_flag_;
+  std::vector<RigidTool> tools_;
+  std::vector<ToolContact> contacts_;
+  std::vector<VelocityCondition> conditions_;
+  std::vector<StepRecord> history_;
+  std::shared_ptr<Mesh> mesh_;
+  std::ostream* log_ = nullptr;
+  double time_ = 0.0;
+  int step_ = 0;
+};
+
+}  // namespace maxentflow

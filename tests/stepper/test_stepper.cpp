@@ -1,0 +1,165 @@
+// The updated-Lagrangian stepper with rigid-tool contact: V1 and V2 along a
+// whole stroke, contact against inclined and cornered tools, dt retries.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <cstdlib>
+#include <iostream>
+
+#include "../support/flow_problems.hpp"
+
+using namespace maxentflow;
+using maxentflow::test::block_nodes;
+
+namespace {
+
+struct Upset {
+  double max_force_error = 0, max_shape_error = 0;
+  int steps = 0;
+};
+
+// Frictionless upsetting between flat plates (contact, not prescribed
+// velocities): the homogeneous solution V1 / V2 at every step.
+Upset upsetting(Geometry g, int steps, double dt) {
+  const double R0 = 10, H0 = 12, V = 0.06;
+  const NortonHoff mat(150.0, 0.2, 1e-8);
+  StepperParams prm;
+  prm.geometry = g;
+  prm.dt = dt;
+  Stepper<NortonHoff> s(block_nodes(7, 8, R0, H0, false), mat, prm);
+  s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
+  RigidTool top = flat_plate("top", {0, H0}, {0, -1}, 100);
+  top.set_velocity({0, -V});
+  s.add_tool(top);
+  if (std::getenv("MAXENTFLOW_TEST_LOG")) s.set_log(&std::cout);
+  s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+  const bool axi = g == Geometry::axisymmetric;
+  Upset u;
+  // The billet stays a rectangle; its width follows the Eq. (18) update
+  // x += v dt of the homogeneous field: R_{k+1} = R_k (1 + e_k dt) (plane strain)
+  // or R_k (1 + e_k dt / 2) (axisymmetric), H_{k+1} = H_k - V dt.
+  double R = R0, H = H0, sx = 1.0;
+  const Eigen::Matrix2Xd x0 = block_nodes(7, 8, R0, H0, false);
+  for (int k = 0; k < steps; ++k) {
+    // Exact force on the configuration the step solves (its start).
+    const double e = V / H;
+    const double d = axi ? e : 2 * e / std::sqrt(3.0);
+    const double mu = mat.viscosity(d).mu;
+    const double F = axi ? 3 * mu * e * M_PI * R * R : 4 * mu * e * R;
+    const auto& rec = s.step();
+    u.max_force_error = std::max({u.max_force_error, std::abs(rec.tool_force[1].y() - F) / F,
+                                  std::abs(rec.tool_force[0].y() + F) / F,
+                                  std::abs(rec.tool_force[1].x()) / F});
+    const double f = axi ? 1 + e * dt / 2 : 1 + e * dt;
+    R *= f;
+    sx *= f;
+    H -= V * dt;
+    for (int a = 0; a < x0.cols(); ++a)
+      u.max_shape_error = std::max({u.max_shape_error, std::abs(s.nodes()(0, a) - sx * x0(0, a)) / R0,
+                                    std::abs(s.nodes()(1, a) - H / H0 * x0(1, a)) / R0});
+    ++u.steps;
+  }
+  return u;
+}
+
+}  // namespace
+
+TEST_CASE("V2 along the stroke: axisymmetric upsetting by contact stays exact",
+          "[verification][stepper]") {
+  const auto u = upsetting(Geometry::axisymmetric, 100, 1.0);
+  CHECK(u.steps == 100);
+  CHECK(u.max_force_error < 1e-8);
+  CHECK(u.max_shape_error < 1e-8);
+}
+
+TEST_CASE("V1 along the stroke: plane-strain compression by contact stays exact",
+          "[verification][stepper]") {
+  const auto u = upsetting(Geometry::plane_strain, 100, 1.0);
+  CHECK(u.steps == 100);
+  CHECK(u.max_force_error < 1e-8);
+  CHECK(u.max_shape_error < 1e-8);
+}
+
+namespace {
+
+// A billet pressed by a tool; returns the most negative gap (relative to h)
+// over all boundary nodes and steps, and the contact counts.
+struct Pressed {
+  double min_gap = 1e300;
+  int max_contact = 0, min_free_top = 1 << 30;
+  double force_y = 0;
+};
+
+Pressed press(RigidTool tool, int steps) {
+  StepperParams prm;
+  prm.geometry = Geometry::plane_strain;
+  prm.dt = 0.5;
+  Stepper<NortonHoff> s(block_nodes(9, 7, 8, 6, false), NortonHoff(150.0, 0.2, 1e-7), prm);
+  s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
+  s.add_tool(std::move(tool));
+  s.add_velocity_condition({"symmetry", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+  Pressed p;
+  for (int k = 0; k < steps; ++k) {
+    const auto& r = s.step();
+    p.max_contact = std::max(p.max_contact, r.contact_nodes);
+    p.force_y = r.tool_force[1].y();
+    int free_top = 0;
+    for (int a : s.mesh().boundary_nodes()) {
+      const double h = s.mesh().h()(a);
+      for (const auto& t : s.tools()) p.min_gap = std::min(p.min_gap, t.gap(s.nodes().col(a)) / h);
+      if (s.nodes()(1, a) > 5.0 && s.contact_flags()[static_cast<std::size_t>(a)] == 0) ++free_top;
+    }
+    p.min_free_top = std::min(p.min_free_top, free_top);
+  }
+  return p;
+}
+
+}  // namespace
+
+TEST_CASE("contact: an inclined plate does not penetrate the billet", "[stepper][contact]") {
+  // A plate tilted by 10 degrees, touching the billet's top-left corner, moving down.
+  const double a = 10 * M_PI / 180;
+  RigidTool plate = flat_plate("inclined", {0, 6}, {std::sin(a), -std::cos(a)}, 50);
+  plate.set_velocity({0, -0.1});
+  const auto p = press(plate, 4);
+  CHECK(p.min_gap >= -1e-5);  // weak (hat) imposition: measured -1.2e-6 h
+  CHECK(p.max_contact > 1);
+  CHECK(p.force_y > 0);  // the billet pushes the plate up
+}
+
+TEST_CASE("contact: a cornered punch indents without penetration; the free top stays free",
+          "[stepper][contact]") {
+  // A square punch over x in [-1, 3] (the symmetry line at x = 0) on a billet 8 wide.
+  RigidTool punch = rectangle("punch", {-1, 6}, {3, 9});
+  punch.set_velocity({0, -0.1});
+  const auto p = press(punch, 4);
+  CHECK(p.min_gap >= -1e-5);  // weak (hat) imposition: measured -1.2e-6 h
+  CHECK(p.max_contact >= 3);
+  CHECK(p.min_free_top >= 3);  // the top beyond the punch is not in contact
+  CHECK(p.force_y > 0);
+}
+
+TEST_CASE("a step that cannot be done throws and leaves the state of its start",
+          "[stepper]") {
+  StepperParams prm;
+  prm.geometry = Geometry::plane_strain;
+  prm.max_retries = 2;
+  prm.solver.max_iterations = 1;  // no solve can converge
+  Stepper<NortonHoff> s(block_nodes(5, 5, 4, 4, false), NortonHoff(), prm);
+  RigidTool top = flat_plate("top", {0, 4}, {0, -1}, 50);
+  top.set_velocity({0, -0.1});
+  s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 50));
+  s.add_tool(top);
+  s.add_velocity_condition({"symmetry", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+  const Eigen::Matrix2Xd x0 = s.nodes();
+  try {
+    s.step();
+    FAIL("no exception");
+  } catch (const Error& e) {
+    CHECK_THAT(std::string(e.what()), Catch::Contains("dt/4") && Catch::Contains("no convergence"));
+  }
+  CHECK(s.nodes() == x0);
+  CHECK(s.time() == 0.0);
+  CHECK(s.tools()[1].stroke() == 0.0);
+  CHECK(s.steps_done() == 0);
+}
