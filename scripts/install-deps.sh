@@ -2,7 +2,7 @@
 # Installs the Debian packages maxentflow needs, skipping those already present.
 set -euo pipefail
 packages=(cmake g++ make libeigen3-dev libcgal-dev libsuitesparse-dev catch2 libcli11-dev
-          python3-matplotlib)
+          python3-matplotlib libopenblas0-pthread)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -34,11 +34,17 @@ class UmfpackSolver {
   }
   void factorize(const Matrix& A) {
     lu_.factorize(A);
-    require(lu_.info() == Eigen::Success,
-            detail::cat("UMFPACK factorization failed (status ", lu_.umfpackFactorizeReturncode(),
-                        "): the system is singular, e.g. a rigid-body mode is not constrained or a "
-                        "constraint is given twice"),
-            "UmfpackSolver::factorize");
+    if (lu_.info() == Eigen::Success) return;
+    const int status = lu_.umfpackFactorizeReturncode();
+    const char* why = status == UMFPACK_WARNING_singular_matrix
+                          ? "the system is singular, e.g. a rigid-body mode is not constrained or a "
+                            "constraint is given twice"
+                      : status == UMFPACK_ERROR_out_of_memory
+                          ? "out of memory (the LU factors do not fit; fewer nodes or a larger tol0)"
+                          : "UMFPACK error";
+    throw Error(detail::cat("UMFPACK factorization failed (status ", status, "): ", why, "; ",
+                            A.rows(), " unknowns, ", A.nonZeros(), " nonzeros"),
+                "UmfpackSolver::factorize");
   }
   Eigen::VectorXd solve(const Eigen::VectorXd& b) const {
     Eigen::VectorXd x = lu_.solve(b);
