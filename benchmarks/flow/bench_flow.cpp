@@ -1,4 +1,6 @@
-// Benchmark: one full nonlinear solve (Picard then Newton over UMFPACK) of a
+// Benchmark: one full nonlinear solve (Picard then Newton; GMRES preconditioned by
+// the linear-triangle LU, or UMFPACK on the whole system with
+// MAXENTFLOW_BENCH_SOLVER=direct) of a
 // Norton-Hoff plane-strain compression, at N = 1k, 4k, 16k, 64k nodes (spec
 // section 4: time should grow no faster than N^1.2; peak memory at 64k <= 2 GB).
 //
@@ -52,6 +54,12 @@ using namespace maxentflow;
 
 namespace {
 
+bool direct_solver() {
+  const char* e = std::getenv("MAXENTFLOW_BENCH_SOLVER");
+  return e && std::string(e) == "direct";
+}
+const char* solver_name() { return direct_solver() ? "umfpack" : "gmres"; }
+
 using clock_type = std::chrono::steady_clock;
 
 double since(clock_type::time_point t0) {
@@ -89,6 +97,7 @@ void progress(int side, const char* part, double seconds) {
                peak_rss_mb());
 }
 
+template <class Linear>
 Figures run(int side) {
   const double L = 10.0, V = 1.0, H = L;
   Figures f;
@@ -133,7 +142,7 @@ Figures run(int side) {
   t0 = clock_type::now();
   NonlinearSolverParams np;
   if (const char* e = std::getenv("MAXENTFLOW_BENCH_LOG"); e && *e && *e != '0') np.log = &std::cerr;
-  NonlinearSolver<> solver(np);
+  NonlinearSolver<Linear> solver(np);
   Eigen::VectorXd X;
   const SolveReport rep = solver.solve(system, X);
   const double nonlinear = since(t0);
@@ -150,13 +159,13 @@ Figures run(int side) {
       "BENCH flow N=%ld threads=%d unknowns=%d nnz=%ld triangles=%ld mean_nodes_per_cell=%.1f "
       "mean_adjacency=%.1f mesh=%.4f basis=%.4f pattern=%.4f constraints=%.4f assembly=%.4f "
       "factorization=%.4f solve=%.4f nonlinear_other=%.4f total=%.4f picard=%d newton=%d "
-      "residual=%.3e top_force_y=%.6g peak_rss_mb=%.1f\n",
+      "krylov=%d residual=%.3e top_force_y=%.6g peak_rss_mb=%.1f solver=%s\n",
       static_cast<long>(x.cols()), max_threads(), unknowns, nnz,
       static_cast<long>(mesh.number_of_triangles()), disc.mean_nodes_per_cell(),
       system.pattern().mean_adjacency(), f.t["mesh"], f.t["basis"], f.t["pattern"],
       f.t["constraints"], f.t["assembly"], f.t["factorization"], f.t["solve"],
-      f.t["nonlinear_other"], f.t["total"], f.picard, f.newton, rep.residual, top.y(),
-      peak_rss_mb());
+      f.t["nonlinear_other"], f.t["total"], f.picard, f.newton, rep.linear_iterations, rep.residual,
+      top.y(), peak_rss_mb(), solver_name());
   std::fflush(stdout);
   return f;
 }
@@ -183,7 +192,7 @@ int main(int argc, char** argv) {
     for (int side : {32, 64, 128, 256}) {
       if (static_cast<long>(side) * side > max_n) break;
       if (static_cast<long>(side) * side < min_n) continue;
-      const Figures f = run(side);
+      const Figures f = direct_solver() ? run<UmfpackSolver>(side) : run<GmresSolver<>>(side);
       ns.push_back(static_cast<double>(side) * side);
       for (const auto& [k, v] : f.t) times[k].push_back(v);
     }

@@ -1,18 +1,20 @@
 // Benchmark: E1 upsetting (21 x 25 nodes, 100 steps, axisymmetric), the whole
 // run with its time per step split into mesh, basis, solve (assembly + LU,
 // active set), and post-processing + VTU/CSV output. Never fails on time.
-//   bench_upsetting [steps]
+//   bench_upsetting [steps] [gmres|direct]
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <iostream>
+#include <string>
 
 #include <maxentflow/maxentflow.hpp>
 
 using namespace maxentflow;
 
-int main(int argc, char** argv) {
-  const int steps = argc > 1 ? std::atoi(argv[1]) : 100;
+template <class Linear>
+int run(int steps, const char* solver) {
   const int nx = 21, ny = 25;
   const double R = 10, H = 12, V = 0.06;
   Eigen::Matrix2Xd x(2, nx * ny);
@@ -21,7 +23,8 @@ int main(int argc, char** argv) {
   StepperParams prm;
   prm.geometry = Geometry::axisymmetric;
   prm.dt = 1.0;
-  Stepper<NortonHoff> sim(x, NortonHoff(150.0, 0.2, 1e-6 * V / H), prm);
+  if (std::getenv("BENCH_LOG")) prm.solver.log = &std::cerr;
+  Stepper<NortonHoff, Linear> sim(x, NortonHoff(150.0, 0.2, 1e-6 * V / H), prm);
   sim.add_tool(flat_plate("bottom plate", {0, 0}, {0, 1}, 1000));
   RigidTool top = flat_plate("top plate", {0, H}, {0, -1}, 1000);
   top.set_velocity({0, -V});
@@ -38,8 +41,8 @@ int main(int argc, char** argv) {
     output += std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
   }
   const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  double mesh = 0, basis = 0, solve = 0, post = 0;
-  int picard = 0, newton = 0;
+  double mesh = 0, basis = 0, solve = 0, post = 0, assembly = 0, factorization = 0, linear = 0;
+  int picard = 0, newton = 0, krylov = 0;
   for (const auto& r : sim.history()) {
     mesh += r.mesh_seconds;
     basis += r.basis_seconds;
@@ -47,12 +50,23 @@ int main(int argc, char** argv) {
     post += r.post_seconds;
     picard += r.picard;
     newton += r.newton;
+    krylov += r.linear_iterations;
+    assembly += r.assembly_seconds;
+    factorization += r.factorization_seconds;
+    linear += r.linear_seconds;
   }
   std::printf(
       "BENCH upsetting nodes=%d steps=%d threads=%d total_s=%.3f per_step_s=%.4f mesh_s=%.3f "
-      "basis_s=%.3f solve_s=%.3f post_s=%.3f output_s=%.3f picard=%d newton=%d\n",
-      nx * ny, steps, max_threads(), total, total / steps, mesh, basis, solve, post, output, picard,
-      newton);
+      "basis_s=%.3f solve_s=%.3f (assembly_s=%.3f factorization_s=%.3f linear_s=%.3f) post_s=%.3f output_s=%.3f picard=%d newton=%d krylov=%d solver=%s\n",
+      nx * ny, steps, max_threads(), total, total / steps, mesh, basis, solve, assembly, factorization, linear, post, output, picard,
+      newton, krylov, solver);
   std::filesystem::remove_all(dir);
   return 0;
+}
+
+int main(int argc, char** argv) {
+  const int steps = argc > 1 ? std::atoi(argv[1]) : 100;
+  const std::string solver = argc > 2 ? argv[2] : "gmres";
+  if (solver == "direct") return run<UmfpackSolver>(steps, "direct");
+  return run<GmresSolver<>>(steps, "gmres");
 }

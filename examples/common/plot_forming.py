@@ -2,12 +2,14 @@
 """PNG figures of a forming run written by maxentflow's ResultsWriter.
 
   plot_forming.py DIR --maps pressure:1,50,100 velocity_y:100 \
-                      --force-tool "top plate" [--exact exact.csv]
+                      --force-tool "top plate" [--exact exact.csv] \
+                      [--profile profile_axis_step1.csv ...]
 
 Maps: tripcolor of a VTU point field over the kept triangles (the integration
 mesh), with the tools' outlines from tools.csv; `velocity_x` / `velocity_y` pick
 a component. Curve: the tool force against its stroke from forces.csv, with the
-exact curve if given.
+exact curve if given. Profiles: a two-column CSV (position, value) as a line,
+like the paper's Fig. 7 (name.csv -> name.png).
 """
 import argparse
 import csv
@@ -119,6 +121,29 @@ def plot_force(directory, tool, exact):
     plt.close(fig)
 
 
+PROFILE_TITLES = {"profile_axis_step1": "pressure along the axis y = 0, step 1",
+                  "profile_die_step1": "pressure along the die face plane x = L, step 1"}
+
+
+def plot_profile(directory, name):
+    path = os.path.join(directory, name)
+    if not os.path.exists(path):
+        print("plot_forming: no %s, skipped" % path, file=sys.stderr)
+        return
+    rows = read_csv(path)
+    xk, yk = list(rows[0].keys())[:2]
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    ax.plot([float(r[xk]) for r in rows], [float(r[yk]) for r in rows], "-", lw=1.8)
+    ax.set_xlabel(xk)
+    ax.set_ylabel("pressure p" if yk == "p" else yk)
+    stem = os.path.splitext(name)[0]
+    ax.set_title(PROFILE_TITLES.get(stem, stem))
+    ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, stem + ".png"), dpi=130)
+    plt.close(fig)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("directory")
@@ -126,6 +151,7 @@ def main():
     ap.add_argument("--maps", nargs="*", default=[], help="field:step,step,...")
     ap.add_argument("--force-tool")
     ap.add_argument("--exact")
+    ap.add_argument("--profile", nargs="*", default=[], help="two-column CSV files to draw as curves")
     a = ap.parse_args()
     for spec in a.maps:
         field, steps = spec.split(":")
@@ -133,6 +159,8 @@ def main():
             plot_map(a.directory, a.prefix, field, int(s))
     if a.force_tool:
         plot_force(a.directory, a.force_tool, a.exact)
+    for name in a.profile:
+        plot_profile(a.directory, name)
 
 
 if __name__ == "__main__":

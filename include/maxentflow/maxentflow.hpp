@@ -17,6 +17,7 @@
 #include <maxentflow/flow/stabilized_flow.hpp>
 #include <maxentflow/flow/constraints.hpp>
 #include <maxentflow/flow/flow_system.hpp>
+#include <maxentflow/solver/krylov_solver.hpp>
 #include <maxentflow/solver/linear_solver.hpp>
 #include <maxentflow/solver/nonlinear_solver.hpp>
 #include <maxentflow/contact/rigid_tool.hpp>

@@ -351,6 +351,15 @@ TEST_CASE("extrusion die: the paper's square die, edge radius, axisymmetric", "[
   check(round.closest(V2(290, 140)), c - 10 * V2(1, 1) / s2, V2(-1, -1) / s2, 20 * s2 - 10);
   check(round.closest(V2(290, 200)), V2(300, 200), V2(-1, 0), 10);
 
+  // The back face (exit relief): product material just past the land's end,
+  // slightly above it, is outside the die; without the relief it is "behind" the land.
+  const auto relieved = maxentflow::extrusion_die("die", V2(300, 150), V2(1, 0), 150, 30, 0, 300, 150);
+  REQUIRE(relieved.pieces().size() == 4);
+  CHECK(near(relieved.pieces()[0].start, V2(330, 300)));
+  check(relieved.closest(V2(336, 151)), V2(330, 151), V2(1, 0), 6);
+  check(relieved.closest(V2(310, 140)), V2(310, 150), V2(0, -1), 10);
+  CHECK(die.gap(V2(336, 151)) < 0);
+
   // Axisymmetric (r, z): extrusion in -z, axis r = 0 on the right of the direction.
   const auto axi = maxentflow::extrusion_die("axi", V2(5, 0), V2(0, -1), 5, 2);
   check(axi.closest(V2(7, 1)), V2(7, 0), V2(0, 1), 1);

@@ -1,10 +1,17 @@
 // The updated-Lagrangian stepper with rigid-tool contact: V1 and V2 along a
-// whole stroke, contact against inclined and cornered tools, dt retries.
+// whole stroke, contact against inclined and cornered tools, dt retries, and
+// the results files (VTU/PVD/CSV parse, whole after every step).
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
 
 #include "../support/flow_problems.hpp"
 
@@ -162,4 +169,123 @@ TEST_CASE("a step that cannot be done throws and leaves the state of its start",
   CHECK(s.time() == 0.0);
   CHECK(s.tools()[1].stroke() == 0.0);
   CHECK(s.steps_done() == 0);
+}
+
+namespace {
+
+std::string slurp(const std::filesystem::path& p) {
+  std::ifstream f(p);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+// Value of attribute `name` in the tag starting at `from`.
+std::string attribute(const std::string& s, std::size_t from, const std::string& name) {
+  const std::size_t end = s.find('>', from);
+  const std::size_t a = s.find(" " + name + "=\"", from);
+  REQUIRE(a != std::string::npos);
+  REQUIRE(a < end);
+  const std::size_t b = a + name.size() + 3;
+  return s.substr(b, s.find('"', b) - b);
+}
+
+std::size_t count_numbers(const std::string& text) {
+  std::istringstream in(text);
+  std::size_t n = 0;
+  double v;
+  while (in >> v) {
+    REQUIRE(std::isfinite(v));
+    ++n;
+  }
+  REQUIRE(in.eof());  // nothing that is not a number
+  return n;
+}
+
+// A VTU as ParaView needs it: every DataArray has NumberOfPoints (cells) x
+// components finite values; connectivity 3 per triangle, indices in range.
+void check_vtu(const std::filesystem::path& p, int nodes) {
+  const std::string s = slurp(p);
+  REQUIRE(s.rfind("<?xml", 0) == 0);
+  REQUIRE(s.find("</VTKFile>") != std::string::npos);
+  const std::size_t piece = s.find("<Piece ");
+  REQUIRE(piece != std::string::npos);
+  const long np = std::stol(attribute(s, piece, "NumberOfPoints"));
+  const long nc = std::stol(attribute(s, piece, "NumberOfCells"));
+  CHECK(np == nodes);
+  CHECK(nc > 0);
+  const std::size_t cell_data = s.find("<CellData>"), points = s.find("<Points>");
+  int arrays = 0;
+  for (std::size_t at = s.find("<DataArray", piece); at != std::string::npos;
+       at = s.find("<DataArray", at + 1)) {
+    const std::size_t body = s.find('>', at) + 1;
+    const std::string values = s.substr(body, s.find("</DataArray>", body) - body);
+    const std::size_t n = count_numbers(values);
+    const std::string name = s.find(" Name=\"", at) < body ? attribute(s, at, "Name") : "";
+    const long comps = s.find(" NumberOfComponents=", at) < body ? std::stol(attribute(s, at, "NumberOfComponents")) : 1;
+    INFO("DataArray " << name);
+    if (name == "connectivity")
+      CHECK(n == static_cast<std::size_t>(3 * nc));
+    else if (name == "offsets" || name == "types")
+      CHECK(n == static_cast<std::size_t>(nc));
+    else if (at > cell_data && at < points)
+      CHECK(n == static_cast<std::size_t>(comps * nc));
+    else
+      CHECK(n == static_cast<std::size_t>(comps * np));
+    ++arrays;
+  }
+  CHECK(arrays >= 8);  // points, 3 cell arrays, velocity, pressure, strain rate, strain, flags
+}
+
+}  // namespace
+
+TEST_CASE("results: VTU, PVD and CSV files parse and are whole after every step",
+          "[stepper][results]") {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / "maxentflow_test_results";
+  fs::remove_all(dir);
+  const double H0 = 12, V = 0.06;
+  StepperParams prm;
+  prm.geometry = Geometry::axisymmetric;
+  prm.dt = 2.0;
+  Stepper<NortonHoff> s(block_nodes(5, 6, 10, H0, false), NortonHoff(150.0, 0.2, 1e-8), prm);
+  s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
+  RigidTool top = flat_plate("top", {0, H0}, {0, -1}, 100);
+  top.set_velocity({0, -V});
+  s.add_tool(top);
+  s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+  ResultsWriter out(dir);
+  std::vector<std::string> vtus;
+  for (int k = 1; k <= 4; ++k) {
+    s.step();
+    const bool vtu = k % 2 == 1;
+    out.record(s, vtu);
+    if (vtu) vtus.push_back(detail::cat("step_000", k, ".vtu"));
+    // A run stopped here (between steps) leaves complete files: check them now.
+    const std::string pvd = slurp(dir / "step.pvd");
+    REQUIRE(pvd.find("</VTKFile>") != std::string::npos);
+    std::size_t datasets = 0;
+    for (std::size_t at = pvd.find("<DataSet"); at != std::string::npos; at = pvd.find("<DataSet", at + 1)) {
+      const std::string file = attribute(pvd, at, "file");
+      REQUIRE(datasets < vtus.size());
+      CHECK(file == vtus[datasets]);
+      CHECK(fs::exists(dir / file));
+      ++datasets;
+    }
+    CHECK(datasets == vtus.size());
+    for (const auto& f : vtus) check_vtu(dir / f, 30);
+    std::istringstream forces(slurp(dir / "forces.csv"));
+    std::string line;
+    std::getline(forces, line);
+    CHECK(line == "step,time,tool,stroke,fx,fy");
+    int rows = 0;
+    while (std::getline(forces, line)) {
+      CHECK(std::count(line.begin(), line.end(), ',') == 5);
+      ++rows;
+    }
+    CHECK(rows == 2 * k);  // two tools per step
+    for (const auto& e : fs::directory_iterator(dir))
+      CHECK(e.path().filename().string().find(".tmp.") == std::string::npos);
+  }
+  fs::remove_all(dir);
 }

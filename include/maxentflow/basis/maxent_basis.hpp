@@ -467,14 +467,25 @@ class MaxEntBasis {
     if (gradients) {
       // Gradients do not exist on the facet from outside; take the one-sided limit
       // just inside, with the same support.
-      const Point xin = x + prm_.gradient_offset * h_ref * inward;
-      double hr = 0, dn = std::numeric_limits<double>::infinity();
-      for (int j = 0; j < m; ++j) {
-        const int a = ws.support[static_cast<std::size_t>(j)];
-        load(ws, j, xin, nodes_.col(a), beta_(a), h_(a), hr, dn);
+      // At a sharp hull vertex (a spike of the free surface) the dual just
+      // inside is too stiff to solve; step further in, up to 1e-3 h (the
+      // gradient of a function that is a Kronecker delta there is a limit
+      // of little accuracy anyway).
+      for (double offset = prm_.gradient_offset;; offset *= 100.0) {
+        const Point xin = x + offset * h_ref * inward;
+        double hr = 0, dn = std::numeric_limits<double>::infinity();
+        for (int j = 0; j < m; ++j) {
+          const int a = ws.support[static_cast<std::size_t>(j)];
+          load(ws, j, xin, nodes_.col(a), beta_(a), h_(a), hr, dn);
+        }
+        try {
+          const Info in = solve_interior(xin, ws, m, h_ref, nullptr, true, id);
+          info.iterations += in.iterations;
+          break;
+        } catch (const Error&) {
+          if (offset * 100.0 > 1e-3) throw;
+        }
       }
-      const Info in = solve_interior(xin, ws, m, h_ref, nullptr, true, id);
-      info.iterations += in.iterations;
     }
     ws.dual.p.head(m) = p;
     return info;

@@ -22,6 +22,8 @@ struct ContactPoint {
   ToolProjection projection;
   double h = 0.0;  ///< nodal spacing, the scale of the gap tolerances
   bool active = false;
+  int releases = 0;  ///< times the active set released it this step (at most once)
+  int prev = -1, next = -1;  ///< neighbouring boundary nodes (indices into points())
 };
 
 /// Contact of the workpiece boundary with one rigid tool over a step dt.
@@ -44,6 +46,12 @@ class ToolContact {
   struct params {
     double gap_tol = 1e-3;      ///< in contact when g_n <= gap_tol * h_a
     double release_tol = 1e-9;  ///< released when Lambda > release_tol * max|Lambda| (tensile)
+    /// A node released in this step comes back only if it would penetrate by
+    /// more than reentry_tol * h_a: without this hysteresis a node at a die
+    /// corner can flip between tensile-and-active and free-and-penetrating
+    /// forever. The small penetration it may keep is closed at the next step
+    /// (the -g/dt term) and stays far inside StepperParams::penetration_tol.
+    double reentry_tol = 1e-2;
   };
 
   ToolContact() = default;
@@ -64,12 +72,19 @@ class ToolContact {
       c.projection = tool.closest(x.col(a));
       const double g = c.projection.gap;
       double g_end = g;
-      if (v_guess.cols() == x.cols())
-        g_end = g + dt * (v_guess.col(a) - tool.velocity()).dot(c.projection.normal);
+      if (v_guess.cols() == x.cols()) g_end = predicted_gap(tool, x.col(a), v_guess.col(a), dt);
       c.active = g <= prm_.gap_tol * h(a) || g_end < 0.0;
       // A node far from the tool (beyond a few h) cannot be reached in one step.
       if (c.projection.distance > 10.0 * h(a) && g > 0) c.active = false;
       points_.push_back(c);
+    }
+    std::map<int, int> index;  // node -> position in points_
+    for (std::size_t i = 0; i < points_.size(); ++i) index[points_[i].node] = static_cast<int>(i);
+    for (const auto& seg : mesh.boundary_segments()) {
+      const auto a = index.find(seg.a), b = index.find(seg.b);
+      if (a == index.end() || b == index.end()) continue;
+      points_[static_cast<std::size_t>(a->second)].next = b->second;
+      points_[static_cast<std::size_t>(b->second)].prev = a->second;
     }
   }
 
@@ -162,7 +177,7 @@ class ToolContact {
   /// tensile, activates free nodes that would penetrate with the velocity v
   /// (2 x N nodal values). Returns the number of changes.
   int update(const ConstraintSet& cs, int part, const Eigen::VectorXd& X, int n_nodes,
-             const Eigen::Matrix2Xd& v, const RigidTool& tool, double dt) {
+             const Eigen::Matrix2Xd& x, const Eigen::Matrix2Xd& v, const RigidTool& tool, double dt) {
     std::map<int, double> lambda;
     double lmax = 0.0;
     for (std::size_t i = 0; i < cs.rows().size(); ++i)
@@ -172,23 +187,47 @@ class ToolContact {
         lmax = std::max(lmax, std::abs(l));
       }
     int changes = 0;
+    // Contact zones open from their edges: a node is released only if a
+    // boundary neighbour is free. Inside a zone a tensile multiplier is the
+    // weak hat imposition's oscillation (e.g. next to a die corner's pressure
+    // peak), and releasing it would free both its segments and let them
+    // penetrate. Decided on the state before this update.
+    std::vector<char> was_active(points_.size());
+    for (std::size_t i = 0; i < points_.size(); ++i) was_active[i] = points_[i].active;
+    auto at_zone_edge = [&](const ContactPoint& c) {
+      return c.prev < 0 || c.next < 0 || !was_active[static_cast<std::size_t>(c.prev)] ||
+             !was_active[static_cast<std::size_t>(c.next)];
+    };
     for (auto& c : points_) {
       if (c.active) {
         const auto it = lambda.find(c.node);
-        if (it != lambda.end() && it->second > prm_.release_tol * lmax) {
+        // Released at most once per step: a node that the free solve drives
+        // back into the tool stays in contact (its multiplier is then only
+        // slightly tensile, an artefact of the weak hat imposition).
+        if (it != lambda.end() && it->second > prm_.release_tol * lmax && c.releases == 0 &&
+            at_zone_edge(c)) {
           c.active = false;
+          ++c.releases;
           ++changes;
         }
       } else {
-        const double g_end =
-            c.projection.gap + dt * (v.col(c.node) - tool.velocity()).dot(c.projection.normal);
-        if (g_end < -prm_.gap_tol * c.h) {
+        const double g_end = predicted_gap(tool, x.col(c.node), v.col(c.node), dt);
+        if (g_end < -(c.releases > 0 ? prm_.reentry_tol : prm_.gap_tol) * c.h) {
           c.active = true;
           ++changes;
         }
       }
     }
     return changes;
+  }
+
+  /// Gap at the end of the step if the node moves with v: the tool's true
+  /// shape at the moved relative position, not g + dt (v - v_tool) . n, whose
+  /// frozen normal is wrong at a tool corner (a node sliding round a die
+  /// corner into the opening would count as penetrating the die face).
+  static double predicted_gap(const RigidTool& tool, const Eigen::Vector2d& x, const Eigen::Vector2d& v,
+                              double dt) {
+    return tool.gap(x + dt * (v - tool.velocity()));
   }
 
  private:

@@ -544,7 +544,10 @@ inline RigidTool container(std::string name, const Eigen::Vector2d& lower,
 /// (face_height; the axis is on the right of the extrusion direction) and, if
 /// container_length > 0, the container wall running back from the face's outer end.
 /// corner_radius rounds the (convex) die corner. The paper's extrusion (cases E2):
-/// extrusion_die("die", {300, 150}, {1, 0}, 150, 30, 0, 300).
+/// extrusion_die("die", {300, 150}, {1, 0}, 150, 30, 0, 300, 150).
+/// exit_relief > 0 adds the die's back face, from the land's end away from the
+/// axis: without it the open end's normal is the land's, so product material
+/// that rises a little past the land's end would count as inside the die.
 ///
 ///        container wall                                  (material on the left of
 ///     C <------------------ F                             travel: inside the die)
@@ -555,7 +558,7 @@ inline RigidTool container(std::string name, const Eigen::Vector2d& lower,
 inline RigidTool extrusion_die(std::string name, const Eigen::Vector2d& die_corner,
                                const Eigen::Vector2d& extrusion_direction, double face_height,
                                double land_length, double corner_radius = 0.0,
-                               double container_length = 0.0) {
+                               double container_length = 0.0, double exit_relief = 0.0) {
   const std::string at = detail::cat("extrusion_die '", name, "'");
   require(die_corner.allFinite() && extrusion_direction.allFinite() && std::isfinite(face_height) &&
               std::isfinite(land_length) && std::isfinite(container_length),
@@ -565,19 +568,24 @@ inline RigidTool extrusion_die(std::string name, const Eigen::Vector2d& die_corn
       face_height > 0.0 && land_length > 0.0,
       detail::cat("face_height and land_length must be > 0, got ", face_height, ", ", land_length),
       at);
-  require(container_length >= 0.0,
-          detail::cat("container_length must be >= 0, got ", container_length), at);
+  require(container_length >= 0.0 && exit_relief >= 0.0,
+          detail::cat("container_length and exit_relief must be >= 0, got ", container_length, ", ",
+                      exit_relief),
+          at);
   const Eigen::Vector2d e = extrusion_direction.normalized();
   const Eigen::Vector2d away = detail::left_normal(e);  // from the axis toward the container
   const Eigen::Vector2d face_top = die_corner + face_height * away;
-  const bool wall = container_length > 0.0;
-  Eigen::Matrix2Xd v(2, wall ? 4 : 3);
-  v.col(0) = die_corner + land_length * e;
-  v.col(1) = die_corner;
-  v.col(2) = face_top;
-  if (wall) v.col(3) = face_top - container_length * e;
+  const bool wall = container_length > 0.0, relief = exit_relief > 0.0;
+  Eigen::Matrix2Xd v(2, 3 + (wall ? 1 : 0) + (relief ? 1 : 0));
+  int k = 0;
+  if (relief) v.col(k++) = die_corner + land_length * e + exit_relief * away;
+  v.col(k++) = die_corner + land_length * e;
+  const int corner = k;
+  v.col(k++) = die_corner;
+  v.col(k++) = face_top;
+  if (wall) v.col(k++) = face_top - container_length * e;
   std::vector<double> radii(static_cast<std::size_t>(v.cols()), 0.0);
-  radii[1] = corner_radius;
+  radii[static_cast<std::size_t>(corner)] = corner_radius;
   return RigidTool(std::move(name), v, radii);
 }
 

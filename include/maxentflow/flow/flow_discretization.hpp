@@ -52,6 +52,14 @@ class FlowDiscretization {
 
   void build(const Mesh& mesh, const Basis& basis, Geometry g, const params& prm = {});
 
+  /// The linear-triangle (P1) companion of a max-ent discretization `maxent`
+  /// on the same mesh: U_T = the three vertices, barycentric values and
+  /// constant gradients at the same Gauss points, the same weights and rho.
+  /// Assembled with the same material and tau it is spectrally close to the
+  /// max-ent system (max-ent tends to P1 as gamma grows) but has ~7 neighbours
+  /// per node instead of ~90, so its LU is cheap: the Krylov preconditioner.
+  void build_linear(const Mesh& mesh, const FlowDiscretization& maxent);
+
   Geometry geometry() const { return geometry_; }
   bool axisymmetric() const { return geometry_ == Geometry::axisymmetric; }
   const params& parameters() const { return prm_; }
@@ -249,6 +257,62 @@ inline void FlowDiscretization::build(const Mesh& mesh, const Basis& basis, Geom
       }
     }
   }
+}
+
+inline void FlowDiscretization::build_linear(const Mesh& mesh, const FlowDiscretization& maxent) {
+  const char* where = "FlowDiscretization::build_linear";
+  require(maxent.number_of_nodes() == static_cast<int>(mesh.number_of_nodes()) &&
+              maxent.cells() == static_cast<int>(mesh.number_of_triangles()),
+          "the max-ent discretization is not on this mesh", where);
+  prm_ = maxent.prm_;
+  prm_.consistent_integration = false;  // P1 gradients are exact
+  geometry_ = maxent.geometry_;
+  n_nodes_ = maxent.n_nodes_;
+  nq_ = maxent.nq_;
+  ne_ = 0;
+  x_ = maxent.x_;
+  w_ = maxent.w_;
+  rho_ = maxent.rho_;
+  edge_x_.resize(2, 0);
+  edge_w_.resize(0);
+  edge_basis_ = {};
+  const int nt = maxent.cells();
+  node_offset_.resize(static_cast<std::size_t>(nt) + 1);
+  value_offset_.resize(static_cast<std::size_t>(nt) + 1);
+  node_.resize(3 * static_cast<std::size_t>(nt));
+  p_.resize(3 * static_cast<std::size_t>(nt * nq_));
+  dp_.resize(2 * p_.size());
+  const auto& X = mesh.nodes();
+  for (int t = 0; t < nt; ++t) {
+    node_offset_[t] = 3 * t;
+    value_offset_[t] = 3 * t * nq_;
+    auto v = mesh.triangles()[static_cast<std::size_t>(t)];
+    std::sort(v.begin(), v.end());
+    const Eigen::Vector2d a = X.col(v[0]), b = X.col(v[1]), c = X.col(v[2]);
+    const double det = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
+    MAXENTFLOW_REQUIRE(det != 0.0, "degenerate triangle", detail::cat(where, ", triangle ", t));
+    // grad of the barycentric coordinates L_1, L_2; L_0 = 1 - L_1 - L_2
+    const Eigen::Vector2d g1 = Eigen::Vector2d((c - a).y(), -(c - a).x()) / det;
+    const Eigen::Vector2d g2 = Eigen::Vector2d(-(b - a).y(), (b - a).x()) / det;
+    const Eigen::Vector2d g0 = -g1 - g2;
+    for (int i = 0; i < 3; ++i) node_[3 * static_cast<std::size_t>(t) + i] = v[static_cast<std::size_t>(i)];
+    for (int q = 0; q < nq_; ++q) {
+      const Eigen::Vector2d d = x_.col(t * nq_ + q) - a;
+      const double l1 = g1.dot(d), l2 = g2.dot(d);
+      double* p = p_.data() + value_offset_[t] + 3 * q;
+      double* dp = dp_.data() + 2 * (value_offset_[t] + 3 * q);
+      p[0] = 1.0 - l1 - l2;
+      p[1] = l1;
+      p[2] = l2;
+      const Eigen::Vector2d* g[3] = {&g0, &g1, &g2};
+      for (int i = 0; i < 3; ++i) {
+        dp[2 * i] = g[i]->x();
+        dp[2 * i + 1] = g[i]->y();
+      }
+    }
+  }
+  node_offset_[nt] = 3 * nt;
+  value_offset_[nt] = 3 * nt * nq_;
 }
 
 inline double FlowDiscretization::divergence_defect(const Mesh& mesh) const {

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -92,11 +94,43 @@ class FlowSystem {
       std::fill_n(A.valuePtr(), A.nonZeros(), 0.0);
     }
     residual_impl(X, kind, &A, R);
-    double* v = A.valuePtr();
-    for (std::size_t k = 0; k < entry_pos_.size(); ++k) {
-      v[entry_pos_[k].first] += entry_coef_[k];   // L in the momentum rows
-      v[entry_pos_[k].second] += entry_coef_[k];  // L^T in the multiplier rows
+    add_constraint_entries(A, entry_pos_);
+  }
+
+  /// The Krylov preconditioner at X: the Picard matrix of the linear-triangle
+  /// companion (FlowDiscretization::build_linear) with the same material, tau
+  /// and constraint rows; the same unknowns as A.
+  void assemble_preconditioner(const Eigen::VectorXd& X, Matrix& P) {
+    update_structure();
+    if (!linear_) {
+      linear_ = std::make_unique<LinearCompanion>();
+      linear_->disc.build_linear(*mesh_, *disc_);
+      linear_->assembler.emplace(linear_->disc, assembler_.material(), assembler_.parameters());
+      linear_->pattern.build_adjacency(linear_->disc);
+      linear_->generation = -1;
     }
+    if (linear_->generation != pattern_.generation()) {
+      linear_->pattern.set_constraints(constraints_.rows());
+      linear_->entry_pos = constraint_positions(linear_->pattern.matrix());
+      linear_->generation = pattern_.generation();
+    }
+    const SystemPattern& lp = linear_->pattern;
+    if (P.rows() != lp.size() || P.nonZeros() != lp.matrix().nonZeros() ||
+        generation_of_P_ != lp.generation()) {
+      P = lp.matrix();
+      generation_of_P_ = lp.generation();
+    } else {
+      std::fill_n(P.valuePtr(), P.nonZeros(), 0.0);
+    }
+    Eigen::VectorXd R = Eigen::VectorXd::Zero(lp.size());
+    linear_->assembler->assemble(X, Linearization::picard, lp, &P, R);
+    add_constraint_entries(P, linear_->entry_pos);
+  }
+  /// Changes whenever the preconditioner's structure does.
+  long preconditioner_generation() {
+    update_structure();
+    return linear_ && linear_->generation == pattern_.generation() ? linear_->pattern.generation()
+                                                                   : -1;
   }
 
   void residual(const Eigen::VectorXd& X, Eigen::VectorXd& R) {
@@ -139,11 +173,23 @@ class FlowSystem {
     if (!structure_dirty_) return;
     structure_dirty_ = false;
     pattern_.set_constraints(constraints_.rows());
-    // Value positions of each constraint coefficient in A (both blocks).
-    const Matrix& A = pattern_.matrix();
-    const int nv = 3 * number_of_nodes();
-    entry_pos_.clear();
+    entry_pos_ = constraint_positions(pattern_.matrix());
     entry_coef_.clear();
+    for (const auto& r : constraints_.rows()) entry_coef_.insert(entry_coef_.end(), r.coef.begin(), r.coef.end());
+  }
+
+  void add_constraint_entries(Matrix& A, const std::vector<std::pair<int, int>>& pos) const {
+    double* v = A.valuePtr();
+    for (std::size_t k = 0; k < pos.size(); ++k) {
+      v[pos[k].first] += entry_coef_[k];   // L in the momentum rows
+      v[pos[k].second] += entry_coef_[k];  // L^T in the multiplier rows
+    }
+  }
+
+  // Value positions of each constraint coefficient in A (both blocks), in row order.
+  std::vector<std::pair<int, int>> constraint_positions(const Matrix& A) const {
+    const int nv = 3 * number_of_nodes();
+    std::vector<std::pair<int, int>> pos;
     const int* outer = A.outerIndexPtr();
     const int* inner = A.innerIndexPtr();
     auto position = [&](int row, int col) {
@@ -159,10 +205,10 @@ class FlowSystem {
         const int d = rows[i].dof[k];
         require(d >= 0 && d < nv, detail::cat("constraint dof ", d, " out of range"),
                 detail::cat("FlowSystem, constraint row ", i));
-        entry_pos_.emplace_back(position(li, d), position(d, li));
-        entry_coef_.push_back(rows[i].coef[k]);
+        pos.emplace_back(position(li, d), position(d, li));
       }
     }
+    return pos;
   }
 
   void residual_impl(const Eigen::VectorXd& X, Linearization kind, Matrix* A, Eigen::VectorXd& R) {
@@ -195,8 +241,16 @@ class FlowSystem {
   Eigen::VectorXd traction_;
   std::vector<std::pair<int, int>> entry_pos_;
   std::vector<double> entry_coef_;
+  struct LinearCompanion {
+    FlowDiscretization disc;
+    std::optional<Assembler> assembler;
+    SystemPattern pattern;
+    std::vector<std::pair<int, int>> entry_pos;
+    long generation = -1;  // pattern_ generation its constraints match
+  };
+  std::unique_ptr<LinearCompanion> linear_;  // heap: its assembler points at its disc
   bool structure_dirty_ = true;
-  long generation_of_A_ = -1;
+  long generation_of_A_ = -1, generation_of_P_ = -1;
   double force_scale_ = 1.0;
 };
 

@@ -17,6 +17,7 @@
 
 #include <maxentflow/core/error.hpp>
 #include <maxentflow/flow/stabilized_flow.hpp>
+#include <maxentflow/solver/krylov_solver.hpp>
 #include <maxentflow/solver/linear_solver.hpp>
 
 namespace maxentflow {
@@ -34,17 +35,33 @@ concept NonlinearSystem =
       { s.velocity_norm(x) } -> std::convertible_to<double>;
     };
 
+/// A system that also assembles a preconditioner (for Krylov policies).
+template <class S>
+concept PreconditionedSystem =
+    NonlinearSystem<S> && requires(S& s, const Eigen::VectorXd& x,
+                                   Eigen::SparseMatrix<double, Eigen::ColMajor, int>& P) {
+      s.assemble_preconditioner(x, P);
+      { s.preconditioner_generation() } -> std::convertible_to<long>;
+    };
+
+/// Either kind of linear-solver policy: direct (LinearSolver) or Krylov
+/// with a preconditioner the system assembles (PreconditionedLinearSolver).
+template <class S>
+concept LinearSolverPolicy = LinearSolver<S> || PreconditionedLinearSolver<S>;
+
 struct IterationRecord {
   int iteration = 0;
   Linearization kind = Linearization::picard;
   double residual = 0.0;   ///< relative momentum residual at the start of the iteration
   double increment = 0.0;  ///< |dv|_inf / |v|_inf of the update made
   double step = 1.0;       ///< line-search step length
+  int linear_iterations = 0;  ///< Krylov iterations of the solve (0: direct)
 };
 
 struct SolveReport {
   bool converged = false;
   int picard = 0, newton = 0;
+  int linear_iterations = 0;  ///< Krylov iterations, all solves
   double residual = 0.0, increment = 0.0;
   double assembly_seconds = 0.0, factorization_seconds = 0.0, solve_seconds = 0.0;
   std::vector<IterationRecord> history;
@@ -54,9 +71,10 @@ struct SolveReport {
     std::ostringstream os;
     char line[128];
     for (const auto& h : history) {
-      std::snprintf(line, sizeof line, "  %3d %-6s residual %.3e  increment %.3e  step %.3g\n",
+      std::snprintf(line, sizeof line,
+                    "  %3d %-6s residual %.3e  increment %.3e  step %.3g  linear its %d\n",
                     h.iteration, h.kind == Linearization::picard ? "picard" : "newton", h.residual,
-                    h.increment, h.step);
+                    h.increment, h.step, h.linear_iterations);
       os << line;
     }
     return os.str();
@@ -68,9 +86,25 @@ struct NonlinearSolverParams {
   int max_picard = 40;             ///< Picard iterations before Newton is forced
   double switch_increment = 1e-2;  ///< Picard -> Newton when the increment falls below
   bool newton = true;              ///< false: Picard only
+  /// Start with Newton when X comes in with a velocity (a warm start, e.g. the
+  /// previous step's solution); a failed line search still falls back to Picard.
+  bool newton_from_warm_start = true;
+  /// Converged after a full Newton step once the residual is below
+  /// residual_tol, without the solve that confirms the increment. Saves one
+  /// solve per step, but leaves velocity errors of the order residual_tol,
+  /// which an updated-Lagrangian run accumulates in the node positions (a
+  /// straight free side then drifts off straight by ~1e-10 h per step, the
+  /// scale of the basis's hull tolerance); off by default.
+  bool accept_newton_on_residual = false;
   double velocity_tol = 1e-9;
   double residual_tol = 1e-9;
   int line_search = 8;             ///< step halvings
+  /// Krylov policies: solve each linearization only as far as the outer
+  /// iteration can use (inexact Newton forcing term, Eisenstat-Walker style):
+  /// |R + A dx| <= eta |R| with eta = clamp(max(res, 0.5 residual_tol / res),
+  /// eta_min, eta_max), res the current relative residual.
+  double eta_max = 1e-2;
+  double eta_min = 1e-12;
   std::ostream* log = nullptr;     ///< per-iteration log
 };
 
@@ -78,7 +112,7 @@ struct NonlinearSolverParams {
 /// (or max_picard iterations), then Newton with a backtracking line search on
 /// |R|; a Newton step the line search cannot make fall back to Picard.
 /// Converged when increment <= velocity_tol and residual <= residual_tol.
-template <LinearSolver Linear = UmfpackSolver>
+template <LinearSolverPolicy Linear = UmfpackSolver>
 class NonlinearSolver {
  public:
   using Matrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
@@ -105,7 +139,10 @@ class NonlinearSolver {
       Y.head(std::min<Eigen::Index>(n, X.size())) = X.head(std::min<Eigen::Index>(n, X.size()));
       X = Y;
     }
-    Linearization phase = Linearization::picard;
+    Linearization phase = prm_.newton && prm_.newton_from_warm_start && sys.velocity_norm(X) > 0
+                              ? Linearization::newton
+                              : Linearization::picard;
+    bool full_newton_step = false;
     double increment = std::numeric_limits<double>::infinity();
     Eigen::VectorXd R, Rtry, Xtry, dx;
     for (int it = 0; it < prm_.max_iterations; ++it) {
@@ -115,21 +152,48 @@ class NonlinearSolver {
       rep.assembly_seconds += seconds(t0);
       const double res = sys.relative_residual(R);
       rep.residual = res;
-      if (it > 0 && increment <= prm_.velocity_tol && res <= prm_.residual_tol) {
+      if (it > 0 && res <= prm_.residual_tol &&
+          (increment <= prm_.velocity_tol || (prm_.accept_newton_on_residual && full_newton_step))) {
         rep.converged = true;
         break;
       }
-      t0 = clock::now();
-      if (sys.structure_generation() != analyzed_generation_ || analyzed_size_ != n) {
-        linear_.analyze(A_);
-        analyzed_generation_ = sys.structure_generation();
-        analyzed_size_ = n;
+      int linear_its = 0;
+      if constexpr (PreconditionedLinearSolver<Linear>) {
+        static_assert(PreconditionedSystem<System>,
+                      "a Krylov policy needs a system with assemble_preconditioner()");
+        t0 = clock::now();
+        sys.assemble_preconditioner(X, P_);
+        rep.assembly_seconds += seconds(t0);
+        t0 = clock::now();
+        if (sys.preconditioner_generation() != analyzed_generation_ || analyzed_size_ != n) {
+          linear_.analyze_preconditioner(P_);
+          analyzed_generation_ = sys.preconditioner_generation();
+          analyzed_size_ = n;
+        }
+        linear_.factorize_preconditioner(P_);
+        rep.factorization_seconds += seconds(t0);
+        if constexpr (requires { linear_.set_tolerance(1.0); }) {
+          const double eta = std::max(res, 0.5 * prm_.residual_tol / std::max(res, 1e-300));
+          linear_.set_tolerance(std::clamp(eta, prm_.eta_min, prm_.eta_max));
+        }
+        t0 = clock::now();
+        dx = linear_.solve(A_, -R);
+        rep.solve_seconds += seconds(t0);
+        linear_its = linear_.last_iterations();
+        rep.linear_iterations += linear_its;
+      } else {
+        t0 = clock::now();
+        if (sys.structure_generation() != analyzed_generation_ || analyzed_size_ != n) {
+          linear_.analyze(A_);
+          analyzed_generation_ = sys.structure_generation();
+          analyzed_size_ = n;
+        }
+        linear_.factorize(A_);
+        rep.factorization_seconds += seconds(t0);
+        t0 = clock::now();
+        dx = linear_.solve(-R);
+        rep.solve_seconds += seconds(t0);
       }
-      linear_.factorize(A_);
-      rep.factorization_seconds += seconds(t0);
-      t0 = clock::now();
-      dx = linear_.solve(-R);
-      rep.solve_seconds += seconds(t0);
       MAXENTFLOW_REQUIRE(dx.allFinite(),
                          detail::cat("the linear solve gave NaN/Inf (singular system?) at iteration ",
                                      it, "\n", rep.log()),
@@ -149,24 +213,28 @@ class NonlinearSolver {
           }
         }
         if (!accepted) {  // Newton is outside its basin: back to direct iteration
-          rep.history.push_back({it, kind, res, 0.0, 0.0});
+          rep.history.push_back({it, kind, res, 0.0, 0.0, linear_its});
           ++rep.newton;
           if (prm_.log) *prm_.log << "  newton line search failed; back to picard\n";
           phase = Linearization::picard;
           picard_since_switch_ = 0;
+          full_newton_step = false;
           continue;
         }
       }
       X += step * dx;
+      full_newton_step = kind == Linearization::newton && step == 1.0;
       const double vnorm = sys.velocity_norm(X);
       increment = step * sys.velocity_norm(dx) / (vnorm > 0 ? vnorm : 1.0);
       rep.increment = increment;
-      rep.history.push_back({it, kind, res, increment, step});
+      rep.history.push_back({it, kind, res, increment, step, linear_its});
       (kind == Linearization::picard ? rep.picard : rep.newton) += 1;
       if (prm_.log) {
         char line[128];
-        std::snprintf(line, sizeof line, "  %3d %-6s residual %.3e  increment %.3e  step %.3g\n", it,
-                      kind == Linearization::picard ? "picard" : "newton", res, increment, step);
+        std::snprintf(line, sizeof line,
+                      "  %3d %-6s residual %.3e  increment %.3e  step %.3g  linear its %d\n", it,
+                      kind == Linearization::picard ? "picard" : "newton", res, increment, step,
+                      linear_its);
         *prm_.log << line;
       }
       if (phase == Linearization::picard) ++picard_since_switch_;
@@ -185,7 +253,7 @@ class NonlinearSolver {
  private:
   params prm_;
   Linear linear_;
-  Matrix A_;
+  Matrix A_, P_;
   long analyzed_generation_ = -1;
   int analyzed_size_ = -1;
   int picard_since_switch_ = 0;

@@ -1,0 +1,52 @@
+// The E2 extrusion case (spec section 3) as a Stepper: billet, ram, die,
+// symmetry axis. Shared by the `extrusion` example and its benchmark.
+#pragma once
+
+#include <maxentflow/maxentflow.hpp>
+
+namespace maxentflow::examples {
+
+struct Setup {
+  int nx = 32, ny = 32;
+  double length = 300, height = 300, reduction = 0.5, land = 30, V = 5, dt = 0.3;
+  double gamma = 1.6, Cs = 0.5, alpha = 1.3, mu0 = 150, n = 0.2;
+  bool axisymmetric = false;
+  double opening() const { return (1.0 - reduction) * height; }
+};
+
+// Model coordinates of a billet point (along, across).
+inline Eigen::Vector2d to_model(const Setup& s, const Eigen::Vector2d& q) {
+  return s.axisymmetric ? Eigen::Vector2d(q.y(), s.length - q.x()) : q;
+}
+
+inline Stepper<NortonHoff> make_simulation(const Setup& s) {
+  Eigen::Matrix2Xd x(2, s.nx * s.ny);
+  for (int j = 0; j < s.ny; ++j)
+    for (int i = 0; i < s.nx; ++i)
+      x.col(j * s.nx + i) << s.length * i / (s.nx - 1), s.height * j / (s.ny - 1);
+  StepperParams prm;
+  prm.geometry = s.axisymmetric ? Geometry::axisymmetric : Geometry::plane_strain;
+  prm.dt = s.dt;
+  prm.gamma = s.gamma;
+  prm.mesh.alpha = s.alpha;
+  prm.stabilization.Cs = s.Cs;
+  // Axisymmetric: x = (r, z), the axis r = 0. The die helper keeps the axis on
+  // the right of the extrusion direction, so the bar is extruded along -z: the
+  // billet point (along, across) sits at (r, z) = (across, L - along).
+  if (s.axisymmetric)
+    for (Eigen::Index a = 0; a < x.cols(); ++a) x.col(a) = to_model(s, x.col(a));
+  // d_min far below the process strain rate V / L (see NortonHoff).
+  Stepper<NortonHoff> sim(x, NortonHoff(s.mu0, s.n, 1e-6 * s.V / s.length), prm);
+  const double H = s.height, L = s.length;
+  const Eigen::Vector2d along = s.axisymmetric ? Eigen::Vector2d(0, -1) : Eigen::Vector2d(1, 0);
+  RigidTool ram = flat_plate("ram", to_model(s, {0, 0.5 * H}), along, 0.75 * H);
+  ram.set_velocity(s.V * along);
+  sim.add_tool(ram);
+  sim.add_tool(extrusion_die("die", to_model(s, {L, s.opening()}), along, H - s.opening(), s.land, 0.0,
+                             1.5 * L, H - s.opening()));
+  const Eigen::Vector2d across = s.axisymmetric ? Eigen::Vector2d(1, 0) : Eigen::Vector2d(0, 1);
+  sim.add_velocity_condition({"axis", on_line({0, 0}, across, 1e-9 * H), across, 0.0});
+  return sim;
+}
+
+}  // namespace maxentflow::examples
