@@ -51,7 +51,7 @@ class ToolContact {
     /// corner can flip between tensile-and-active and free-and-penetrating
     /// forever. The small penetration it may keep is closed at the next step
     /// (the -g/dt term) and stays far inside StepperParams::penetration_tol.
-    double reentry_tol = 1e-2;
+    double reentry_tol = 1e-3;
   };
 
   ToolContact() = default;

@@ -31,7 +31,7 @@ concept PreconditionedLinearSolver =
 struct GmresParams {
   double tol = 1e-9;       ///< |b - A x| <= tol |b|
   int restart = 120;       ///< Krylov basis size before a restart
-  int max_iterations = 600;
+  int max_iterations = 150;  ///< then a direct LU of A, kept as the preconditioner
   bool direct_fallback = true;  ///< no convergence: factorize A itself (slow but sure)
 };
 
@@ -54,8 +54,16 @@ class GmresSolver {
   /// The relative tolerance of the next solves (NonlinearSolver's forcing term).
   void set_tolerance(double tol) { prm_.tol = tol; }
 
-  void analyze_preconditioner(const Matrix& P) { M_.analyze(P); }
-  void factorize_preconditioner(const Matrix& P) { M_.factorize(P); }
+  /// A preconditioner that cannot be factorized (singular: e.g. a node that
+  /// only slivers touch) is not an error while the direct fallback is on:
+  /// the next solves factorize A itself.
+  void analyze_preconditioner(const Matrix& P) {
+    analyzed_ = guard([&] { M_.analyze(P); });
+    frozen_ = false;  // a new structure: back to the linear-triangle preconditioner
+  }
+  void factorize_preconditioner(const Matrix& P) {
+    usable_ = analyzed_ && guard([&] { M_.factorize(P); });
+  }
 
   /// x with |b - A x| <= tol |b|, from x = 0.
   Eigen::VectorXd solve(const Matrix& A, const Eigen::VectorXd& b) {
@@ -67,6 +75,11 @@ class GmresSolver {
     last_residual_ = 0.0;
     const double bnorm = b.norm();
     if (bnorm == 0.0) return x;
+    if (!usable_ && !frozen_) return direct(A, b);
+    // After a fallback this structure's solves use the LU of that earlier A:
+    // Newton's next matrices differ little from it, so GMRES needs a few
+    // iterations where the linear-triangle preconditioner needed hundreds.
+    const Preconditioner& M = frozen_ ? direct_ : M_;
     Ar_ = A;  // row-major: the product is parallel (OpenMP) in Eigen
     const int m = std::max(1, prm_.restart);
     V_.resize(n, m + 1);
@@ -84,7 +97,7 @@ class GmresSolver {
       int j = 0;
       for (; j < m && last_iterations_ < prm_.max_iterations; ++j) {
         ++last_iterations_;
-        w.noalias() = Ar_ * M_.solve(V_.col(j));
+        w.noalias() = Ar_ * M.solve(V_.col(j));
         // Modified Gram-Schmidt, repeated once ("twice is enough") for the
         // orthogonality a tight tolerance needs.
         for (int pass = 0; pass < 2; ++pass)
@@ -115,7 +128,7 @@ class GmresSolver {
       // x += M^-1 V y with H y = g (upper triangular j x j).
       const Eigen::VectorXd y =
           H_.topLeftCorner(j, j).template triangularView<Eigen::Upper>().solve(g_.head(j));
-      x += M_.solve(V_.leftCols(j) * y);
+      x += M.solve(V_.leftCols(j) * y);
       r = b - Ar_ * x;
       rnorm = r.norm();
       H_.setZero();
@@ -128,20 +141,41 @@ class GmresSolver {
             detail::cat("GMRES did not converge in ", last_iterations_, " iterations (relative residual ",
                         last_residual_, ")"),
             where);
-    ++direct_fallbacks_;
-    direct_.analyze(A);
-    direct_.factorize(A);
-    return direct_.solve(b);
+    return direct(A, b);
   }
 
   int last_iterations() const { return last_iterations_; }
+  /// False after the preconditioner failed to factorize (solves go direct).
+  bool preconditioner_usable() const { return usable_; }
   double last_residual() const { return last_residual_; }
-  /// Solves GMRES could not do, done by a direct LU of A instead.
+  /// Solves done by a direct LU of A instead (GMRES did not converge in
+  /// max_iterations, or P could not be factorized); that LU then
+  /// preconditions the rest of the structure's solves.
   int direct_fallbacks() const { return direct_fallbacks_; }
   static constexpr const char* name() { return "GMRES + linear-triangle LU"; }
 
  private:
+  template <class F>
+  bool guard(F&& f) {
+    try {
+      f();
+      return true;
+    } catch (const Error&) {
+      if (!prm_.direct_fallback) throw;
+      return false;
+    }
+  }
+  Eigen::VectorXd direct(const Matrix& A, const Eigen::VectorXd& b) {
+    require(prm_.direct_fallback, "no usable preconditioner and no direct fallback", "GmresSolver::solve");
+    ++direct_fallbacks_;
+    direct_.analyze(A);
+    direct_.factorize(A);
+    frozen_ = true;
+    return direct_.solve(b);
+  }
+
   params prm_;
+  bool analyzed_ = false, usable_ = false, frozen_ = false;
   Preconditioner M_, direct_;
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> Ar_;
   Eigen::MatrixXd V_, H_;
