@@ -10,7 +10,12 @@ struct Setup {
   int nx = 32, ny = 32;
   double length = 300, height = 300, reduction = 0.5, land = 30, V = 5, dt = 0.3;
   double gamma = 1.6, Cs = 0.5, alpha = 1.3, mu0 = 150, n = 0.2;
+  double d_min = 1e-6;  ///< Norton-Hoff regularization, relative to V / L
   bool axisymmetric = false;
+  /// Node rezoning (node_adaptivity.hpp): the end of the stroke compresses the
+  /// billet next to the ram about 4:1 along the ram face.
+  bool rezone = true;
+  double rezone_min = 0.35, rezone_max = 2.5;
   double opening() const { return (1.0 - reduction) * height; }
 };
 
@@ -30,13 +35,16 @@ inline Stepper<NortonHoff> make_simulation(const Setup& s) {
   prm.gamma = s.gamma;
   prm.mesh.alpha = s.alpha;
   prm.stabilization.Cs = s.Cs;
+  prm.adapt.enabled = s.rezone;
+  prm.adapt.min_ratio = s.rezone_min;
+  prm.adapt.max_ratio = s.rezone_max;
   // Axisymmetric: x = (r, z), the axis r = 0. The die helper keeps the axis on
   // the right of the extrusion direction, so the bar is extruded along -z: the
   // billet point (along, across) sits at (r, z) = (across, L - along).
   if (s.axisymmetric)
     for (Eigen::Index a = 0; a < x.cols(); ++a) x.col(a) = to_model(s, x.col(a));
   // d_min far below the process strain rate V / L (see NortonHoff).
-  Stepper<NortonHoff> sim(x, NortonHoff(s.mu0, s.n, 1e-6 * s.V / s.length), prm);
+  Stepper<NortonHoff> sim(x, NortonHoff(s.mu0, s.n, s.d_min * s.V / s.length), prm);
   const double H = s.height, L = s.length;
   const Eigen::Vector2d along = s.axisymmetric ? Eigen::Vector2d(0, -1) : Eigen::Vector2d(1, 0);
   RigidTool ram = flat_plate("ram", to_model(s, {0, 0.5 * H}), along, 0.75 * H);

@@ -142,8 +142,15 @@ int main(int argc, char** argv) {
   app.add_option("--Cs", s.Cs, "Stabilization constant Cs (Eq. 14)")->check(CLI::NonNegativeNumber);
   app.add_option("--alpha", s.alpha, "Alpha-shape parameter (circumradius <= alpha h)")->check(CLI::PositiveNumber);
   app.add_option("--mu0", s.mu0, "Norton-Hoff mu0")->check(CLI::PositiveNumber);
+  app.add_option("--dmin", s.d_min, "Norton-Hoff regularization d_min, relative to V / length")
+      ->check(CLI::Range(1e-12, 1e-1));
   app.add_option("--n", s.n, "Norton-Hoff exponent n")->check(CLI::PositiveNumber);
   app.add_flag("--axisymmetric", s.axisymmetric, "A round bar (axisymmetric) instead of plane strain");
+  app.add_flag("!--no-rezone", s.rezone, "Keep the initial nodes (no node removal or insertion)");
+  app.add_option("--rezone-min", s.rezone_min, "Rezoning: remove a node on an edge shorter than this * h0")
+      ->check(CLI::Range(0.05, 0.9));
+  app.add_option("--rezone-max", s.rezone_max, "Rezoning: split an edge longer than this * h0")
+      ->check(CLI::Range(1.2, 10.0));
   app.add_option("--vtu-every", vtu_every, "Write a VTU every this many steps (and at steps 1, 10, last)")
       ->check(CLI::Range(1, 100000));
   app.add_option("--out-dir", out, "Results folder");
@@ -193,21 +200,32 @@ int main(int argc, char** argv) {
         for (const auto& tool : sim.tools())
           min_gap = std::min(min_gap, tool.gap(sim.nodes().col(a)) / sim.mesh().h()(a));
     }
-    // Product width: material past the die land, away from its rounded nose.
+    // Product width: the material's area between the die exit and the nose
+    // (away from both by a spacing or three) over that length, i.e. the mean
+    // thickness that carries the mass flow; the top node alone follows the
+    // free surface's node-scale waviness. On the last solved configuration.
+    const auto& mesh = sim.mesh();
     const double exit = s.length + s.land;
     double front = -1e300;
-    for (Eigen::Index a = 0; a < sim.nodes().cols(); ++a)
-      front = std::max(front, frame(s, sim.nodes().col(a)).x());
-    double width = 0;
-    int product_nodes = 0;
+    for (Eigen::Index a = 0; a < mesh.nodes().cols(); ++a)
+      front = std::max(front, frame(s, mesh.nodes().col(a)).x());
     const double hmean = s.length / (s.nx - 1);
-    for (Eigen::Index a = 0; a < sim.nodes().cols(); ++a) {
-      const Eigen::Vector2d q = frame(s, sim.nodes().col(a));
-      if (q.x() > exit + hmean && q.x() < front - 3 * hmean) {
-        width = std::max(width, q.y());
+    const double x1 = exit + hmean, x2 = front - 3 * hmean;
+    double product_area = 0, width_top = 0;
+    int product_nodes = 0;
+    for (std::size_t t = 0; t < mesh.triangles().size(); ++t) {
+      Eigen::Vector2d c = Eigen::Vector2d::Zero();
+      for (int a : mesh.triangles()[t]) c += frame(s, mesh.nodes().col(a)) / 3.0;
+      if (c.x() > x1 && c.x() < x2) product_area += mesh.area(static_cast<int>(t));
+    }
+    for (Eigen::Index a = 0; a < mesh.nodes().cols(); ++a) {
+      const Eigen::Vector2d q = frame(s, mesh.nodes().col(a));
+      if (q.x() > x1 && q.x() < x2) {
+        width_top = std::max(width_top, q.y());
         ++product_nodes;
       }
     }
+    const double width = x2 > x1 ? product_area / (x2 - x1) : 0.0;
     const double width_error = product_nodes ? std::abs(width - s.opening()) / s.opening() : 1.0;
     // Step-1 profiles: axis pressure decreasing (tolerance 1 % of its range),
     // die-face peak near the corner (within 2 h of y = opening).
@@ -230,7 +248,8 @@ int main(int argc, char** argv) {
     std::cout << "extrusion: " << steps << " steps, " << sim.nodes().cols() << " nodes, " << total << " s\n"
               << "  max area change " << 100 * max_area_change << " %, min gap " << min_gap
               << " h, product width " << width << " (die opening " << s.opening() << ", "
-              << 100 * width_error << " %, " << product_nodes << " nodes)\n"
+              << 100 * width_error << " %; top node at " << width_top << ", " << product_nodes
+              << " nodes)\n"
               << "  step-1 axis pressure " << first.p_axis[0] << " at the ram to "
               << first.p_axis[first.p_axis.size() - 1] << " at the die; largest rise "
               << rise / range << " of the range; die-face peak at y = " << peak_y << "\n"
@@ -247,7 +266,7 @@ int main(int argc, char** argv) {
       std::vector<std::string> failed;
       if (min_gap < -1e-3) failed.push_back("a node penetrates a tool");
       if (max_area_change > area_tol) failed.push_back("area changes by more than --area-tol");
-      if (steps >= 50 && width_error > 0.05) failed.push_back("product width off the die opening by > 5 %");
+      if (steps * s.dt * s.V >= 0.5 * s.length && width_error > 0.05) failed.push_back("product width off the die opening by > 5 %");
       if (rise > 0.01 * range) failed.push_back("step-1 axis pressure not decreasing");
       if (peak_y < s.opening() || peak_y > s.opening() + 0.5 * (s.height - s.opening()) ||
           !(first.p_die[peak] > 1.5 * die_below))

@@ -22,5 +22,6 @@
 #include <maxentflow/solver/nonlinear_solver.hpp>
 #include <maxentflow/contact/rigid_tool.hpp>
 #include <maxentflow/contact/contact.hpp>
+#include <maxentflow/stepper/node_adaptivity.hpp>
 #include <maxentflow/stepper/stepper.hpp>
 #include <maxentflow/stepper/results_writer.hpp>

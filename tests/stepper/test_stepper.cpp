@@ -292,3 +292,119 @@ TEST_CASE("results: VTU, PVD and CSV files parse and are whole after every step"
   }
   fs::remove_all(dir);
 }
+
+TEST_CASE("rezoning: a 3:1 stretched, 1:3 compressed grid gets back to its spacing; corners, area "
+          "and linear fields kept",
+          "[stepper][rezoning]") {
+  // A unit grid (h0 = 1) stretched 3:1 along x and compressed 3:1 along y.
+  Eigen::Matrix2Xd x = block_nodes(21, 21, 20, 20, false);
+  Eigen::VectorXd h0 = Eigen::VectorXd::Ones(x.cols());
+  x.row(0) *= 3.0;
+  x.row(1) /= 3.0;
+  const double W = 60, H = 20.0 / 3.0;
+  auto linear = [](const Eigen::Vector2d& p) { return 2 + 0.5 * p.x() - 0.25 * p.y(); };
+  Eigen::RowVectorXd f(x.cols());
+  for (Eigen::Index a = 0; a < x.cols(); ++a) f[a] = linear(x.col(a));
+  NodeAdaptivityParams prm;
+  prm.enabled = true;
+  int removed = 0, added = 0, passes = 0;
+  for (; passes < 12; ++passes) {
+    const IntegrationMesh<> mesh(x);
+    const NodeAdaptation a = plan_node_adaptation(mesh, h0, prm);
+    if (a.empty()) break;
+    for (int r : a.removed) {  // never a corner
+      const bool corner = (x(0, r) == 0 || x(0, r) == W) && (x(1, r) == 0 || x(1, r) == H);
+      CHECK_FALSE(corner);
+    }
+    removed += static_cast<int>(a.removed.size());
+    added += a.added();
+    x = a.positions(x);
+    h0 = a.transfer(h0.transpose()).transpose();
+    f = a.transfer(f);
+  }
+  CHECK(passes < 12);  // it settles
+  CHECK(removed > 200);
+  CHECK(added > 100);
+  const IntegrationMesh<> mesh(x);
+  CHECK(mesh.total_area() == Approx(W * H).epsilon(1e-12));  // straight sides stay straight
+  CHECK(mesh.boundary_loops().size() == 1);
+  CHECK(mesh.orphan_nodes().empty());
+  double fmax = 0, rmin = 1e300, rmax = 0;
+  for (Eigen::Index a = 0; a < x.cols(); ++a) {
+    CHECK(x(0, a) >= 0);
+    CHECK(x(0, a) <= W);
+    CHECK(x(1, a) >= 0);
+    CHECK(x(1, a) <= H);
+    fmax = std::max(fmax, std::abs(f[a] - linear(x.col(a))));
+  }
+  for (const auto& e : mesh.edges()) {
+    const double r = (x.col(e.b) - x.col(e.a)).norm() / (0.5 * (h0[e.a] + h0[e.b]));
+    rmin = std::min(rmin, r);
+    rmax = std::max(rmax, r);
+  }
+  CHECK(fmax < 1e-12);  // the transfer is linear along the split edges
+  INFO("edge / h0 from " << rmin << " to " << rmax << ", " << x.cols() << " nodes");
+  CHECK(rmin >= prm.min_ratio);
+  CHECK(rmax <= prm.max_ratio);
+}
+
+TEST_CASE("rezoning: no node is put inside a tool", "[stepper][rezoning]") {
+  Eigen::Matrix2Xd x = block_nodes(6, 6, 5, 5, false);
+  x.row(0) *= 4.0;  // every horizontal edge is 4 h0
+  const IntegrationMesh<> mesh(x);
+  const Eigen::VectorXd h0 = Eigen::VectorXd::Ones(x.cols());
+  NodeAdaptivityParams prm;
+  const NodeAdaptation all = plan_node_adaptation(mesh, h0, prm);
+  CHECK(all.added() > 0);
+  const NodeAdaptation none =
+      plan_node_adaptation(mesh, h0, prm, [](const Eigen::Vector2d& p) { return p.x() < 0; });
+  CHECK(none.added() == 0);
+  CHECK_THROWS_AS(plan_node_adaptation(mesh, Eigen::VectorXd::Ones(3), prm), Error);
+}
+
+TEST_CASE("V1 with rezoning: plane-strain compression to half height stays exact as nodes come and go",
+          "[verification][stepper][rezoning]") {
+  // The homogeneous field is linear, so the max-ent solution is exact on any
+  // cloud: the force and the rectangle survive node removal and insertion.
+  const double R0 = 10, H0 = 12, V = 0.06, dt = 1;
+  const NortonHoff mat(150.0, 0.2, 1e-8);
+  StepperParams prm;
+  prm.geometry = Geometry::plane_strain;
+  prm.dt = dt;
+  prm.adapt.enabled = true;
+  prm.adapt.min_ratio = 0.7;  // tight, so that a 2:1 compression rezones
+  prm.adapt.max_ratio = 1.6;
+  Stepper<NortonHoff> s(block_nodes(7, 8, R0, H0, false), mat, prm);
+  s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
+  RigidTool top = flat_plate("top", {0, H0}, {0, -1}, 100);
+  top.set_velocity({0, -V});
+  s.add_tool(top);
+  s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+  double R = R0, H = H0, max_force_error = 0, max_shape_error = 0;
+  int added = 0, removed = 0;
+  for (int k = 0; k < 100; ++k) {
+    const double e = V / H, d = 2 * e / std::sqrt(3.0);
+    const double F = 4 * mat.viscosity(d).mu * e * R;
+    const auto& rec = s.step();
+    added += rec.nodes_added;
+    removed += rec.nodes_removed;
+    max_force_error = std::max({max_force_error, std::abs(rec.tool_force[1].y() - F) / F,
+                                std::abs(rec.tool_force[1].x()) / F});
+    // The solved configuration (the step start) is the R x H rectangle.
+    max_shape_error = std::max(max_shape_error, std::abs(s.mesh().total_area() - R * H) / (R0 * H0));
+    R *= 1 + e * dt;
+    H -= V * dt;
+    double xmax = 0, ymax = 0;
+    for (Eigen::Index a = 0; a < s.nodes().cols(); ++a) {
+      xmax = std::max(xmax, s.nodes()(0, a));
+      ymax = std::max(ymax, s.nodes()(1, a));
+      max_shape_error = std::max({max_shape_error, -s.nodes()(0, a) / R0, -s.nodes()(1, a) / R0});
+    }
+    max_shape_error = std::max({max_shape_error, std::abs(xmax - R) / R0, std::abs(ymax - H) / R0});
+  }
+  INFO("nodes added " << added << ", removed " << removed);
+  CHECK(added > 0);
+  CHECK(removed > 0);
+  CHECK(max_force_error < 1e-8);
+  CHECK(max_shape_error < 1e-8);
+}

@@ -187,6 +187,7 @@ class ToolContact {
         lmax = std::max(lmax, std::abs(l));
       }
     int changes = 0;
+    changed_.clear();
     // Contact zones open from their edges: a node is released only if a
     // boundary neighbour is free. Inside a zone a tensile multiplier is the
     // weak hat imposition's oscillation (e.g. next to a die corner's pressure
@@ -209,12 +210,14 @@ class ToolContact {
           c.active = false;
           ++c.releases;
           ++changes;
+          changed_.push_back(c.node);
         }
       } else {
         const double g_end = predicted_gap(tool, x.col(c.node), v.col(c.node), dt);
         if (g_end < -(c.releases > 0 ? prm_.reentry_tol : prm_.gap_tol) * c.h) {
           c.active = true;
           ++changes;
+          changed_.push_back(c.node);
         }
       }
     }
@@ -225,6 +228,9 @@ class ToolContact {
   /// shape at the moved relative position, not g + dt (v - v_tool) . n, whose
   /// frozen normal is wrong at a tool corner (a node sliding round a die
   /// corner into the opening would count as penetrating the die face).
+  /// Nodes whose state the last update() changed.
+  const std::vector<int>& changed_nodes() const { return changed_; }
+
   static double predicted_gap(const RigidTool& tool, const Eigen::Vector2d& x, const Eigen::Vector2d& v,
                               double dt) {
     return tool.gap(x + dt * (v - tool.velocity()));
@@ -233,6 +239,7 @@ class ToolContact {
  private:
   params prm_;
   std::vector<ContactPoint> points_;
+  std::vector<int> changed_;
 };
 
 }  // namespace maxentflow

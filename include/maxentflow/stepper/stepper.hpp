@@ -27,6 +27,7 @@
 #include <maxentflow/material/norton_hoff.hpp>
 #include <maxentflow/mesh/integration_mesh.hpp>
 #include <maxentflow/solver/nonlinear_solver.hpp>
+#include <maxentflow/stepper/node_adaptivity.hpp>
 
 namespace maxentflow {
 
@@ -51,6 +52,9 @@ struct StepperParams {
   /// the tool: measured on E2 up to 6 % of h (16 x 16 nodes), and 0.32 h_a
   /// for a node crossing the die corner onto the land (32 x 32).
   double snap_tol = 0.5;
+  /// Node rezoning at the start of each step after the first (off by default;
+  /// see node_adaptivity.hpp). h0 is the first configuration's h_a.
+  NodeAdaptivityParams adapt;
 };
 
 /// What one step did (also one line of the progress log).
@@ -62,6 +66,8 @@ struct StepRecord {
   int picard = 0, newton = 0, active_set_iterations = 0;
   int linear_iterations = 0;  ///< Krylov iterations (0 with a direct solver)
   int contact_nodes = 0;
+  int nodes = 0;                            ///< nodes in the step's configuration
+  int nodes_added = 0, nodes_removed = 0;   ///< by the rezoning before the step
   std::vector<Eigen::Vector2d> tool_force;  ///< force on each tool, configuration at the step start
   std::vector<double> tool_stroke;          ///< each tool's travel at the step start
   double seconds = 0.0, mesh_seconds = 0.0, basis_seconds = 0.0, solve_seconds = 0.0,
@@ -156,6 +162,8 @@ class Stepper {
     StepRecord rec;
     rec.step = step_ + 1;
     rec.dt = prm_.dt;
+    if (prm_.adapt.enabled && h0_.size() == x_.cols()) rezone(rec);
+    rec.nodes = static_cast<int>(x_.cols());
     const State saved = save();
     std::string failures;
     for (int level = 0; level <= prm_.max_retries; ++level) {
@@ -197,6 +205,10 @@ class Stepper {
                     r.tool_force[k].x(), r.tool_force[k].y());
       os << buf;
     }
+    if (r.nodes_added || r.nodes_removed) {
+      std::snprintf(buf, sizeof buf, "  nodes %d (+%d -%d)", r.nodes, r.nodes_added, r.nodes_removed);
+      os << buf;
+    }
     std::snprintf(buf, sizeof buf, "  %.3f s%s\n", r.seconds, r.substeps > 1 ? "  (retried)" : "");
     os << buf;
   }
@@ -234,6 +246,7 @@ class Stepper {
     auto t = clock::now();
     auto mesh = std::make_shared<Mesh>(prm_.mesh);
     mesh->build(x_);
+    if (h0_.size() != x_.cols()) h0_ = mesh->h();  // the rezoning's target spacing
     rec.mesh_seconds += since(t);
     t = clock::now();
     typename Basis::params bp;
@@ -294,9 +307,16 @@ class Stepper {
       for (std::size_t k = 0; k < tools_.size(); ++k)
         changes += contacts_[k].update(sys.constraints(), part[k], X, N, x_, v, tools_[k], dt);
       if (changes == 0) break;
-      if (as + 1 >= prm_.max_active_set_iterations)
-        throw Error(detail::cat("the contact active set did not settle in ", as + 1, " iterations"),
+      if (as + 1 >= prm_.max_active_set_iterations) {
+        std::string which;
+        for (std::size_t k = 0; k < tools_.size(); ++k)
+          for (int a : contacts_[k].changed_nodes())
+            which += detail::cat(" node ", a, " at (", x_(0, a), ", ", x_(1, a), ") now ",
+                                 contact_state(k, a), " on '", tools_[k].name(), "';");
+        throw Error(detail::cat("the contact active set did not settle in ", as + 1,
+                                " iterations; last changes:", which),
                     "Stepper::advance");
+      }
     }
     rec.active_set_iterations += as + 1;
     rec.solve_seconds += since(t);
@@ -325,8 +345,24 @@ class Stepper {
     basis_ = basis;
     x_solved_ = x_;
     nodal_fields(at_nodes, X, dt, sys);
+    // Nodes under a velocity condition end the step where it puts them: the
+    // hat multipliers impose it on average, and a symmetry-axis node that
+    // drifts past the selector's tolerance would lose its condition.
+    struct Held {
+      int node;
+      Eigen::Vector2d e;  // the condition's direction
+      double target;      // e . x at the step end
+    };
+    std::vector<Held> held;
+    for (const auto& c : conditions_) {
+      const Eigen::Vector2d e = c.direction.normalized();
+      for (const auto& seg : mesh->boundary_segments())
+        if (c.select(x_.col(seg.a), x_.col(seg.b)))
+          for (int a : {seg.a, seg.b}) held.push_back({a, e, e.dot(x_.col(a)) + dt * c.value});
+    }
     // Eq. (18): the nodes move with the material velocity at their position.
     x_ += dt * v;
+    for (const auto& h : held) x_.col(h.node) += (h.target - h.e.dot(x_.col(h.node))) * h.e;
     MAXENTFLOW_REQUIRE(x_.allFinite(), "node positions became NaN", "Stepper::advance");
     for (auto& tool : tools_) tool.move(dt);
     time_ += dt;
@@ -415,6 +451,36 @@ class Stepper {
       strain_[a] += d_nodal_[a] * dt;
     }
   }
+  // Rezones the cloud x_ (NodeAdaptation) and carries every per-node array
+  // to the new numbering; the next solve starts from the transferred fields.
+  void rezone(StepRecord& rec) {
+    const auto t = clock::now();
+    Mesh mesh(prm_.mesh);
+    mesh.build(x_);
+    const auto admissible = [this](const Eigen::Vector2d& p) {
+      return std::all_of(tools_.begin(), tools_.end(), [&](const RigidTool& k) { return k.gap(p) >= 0; });
+    };
+    const NodeAdaptation a = plan_node_adaptation(mesh, h0_, prm_.adapt, admissible);
+    rec.mesh_seconds += since(t);
+    if (a.empty()) return;
+    const std::vector<int> map = a.old_to_new(x_.cols());
+    x_ = a.positions(x_);
+    V_ = a.transfer_interleaved(V_, 3);
+    v_nodal_ = a.transfer(v_nodal_);
+    strain_ = a.transfer(strain_.transpose()).transpose();
+    p_nodal_ = a.transfer(p_nodal_.transpose()).transpose();
+    d_nodal_ = a.transfer(d_nodal_.transpose()).transpose();
+    h0_ = a.transfer(h0_.transpose()).transpose();
+    contact_flag_.assign(static_cast<std::size_t>(x_.cols()), 0);
+    std::map<std::tuple<int, int, int>, double> guess;
+    for (const auto& [k, l] : lambda_guess_) {
+      const int b = map[static_cast<std::size_t>(std::get<1>(k))];
+      if (b >= 0) guess[{std::get<0>(k), b, std::get<2>(k)}] = l;
+    }
+    lambda_guess_.swap(guess);
+    rec.nodes_added = a.added();
+    rec.nodes_removed = static_cast<int>(a.removed.size());
+  }
   double mesh_h_scale(int a) const { return mesh_ ? mesh_->h()(a) : 1.0; }
 
   StepperParams prm_;
@@ -434,6 +500,7 @@ class Stepper {
   }
   Eigen::Matrix2Xd v_nodal_;
   Eigen::VectorXd p_nodal_, d_nodal_, strain_;
+  Eigen::VectorXd h0_;  // target spacing of the rezoning, per node
   std::vector<int> contact_flag_;
   std::vector<RigidTool> tools_;
   std::vector<ToolContact> contacts_;
