@@ -86,13 +86,7 @@ class FlowSystem {
     update_structure();
     require(X.size() == pattern_.size(), detail::cat("X has ", X.size(), " entries, the system ", pattern_.size()),
             "FlowSystem::assemble");
-    if (A.rows() != pattern_.size() || A.nonZeros() != pattern_.matrix().nonZeros() ||
-        generation_of_A_ != pattern_.generation()) {
-      A = pattern_.matrix();
-      generation_of_A_ = pattern_.generation();
-    } else {
-      std::fill_n(A.valuePtr(), A.nonZeros(), 0.0);
-    }
+    reset_to_pattern(A, pattern_, generation_of_A_);
     residual_impl(X, kind, &A, R);
     add_constraint_entries(A, entry_pos_);
   }
@@ -115,16 +109,21 @@ class FlowSystem {
       linear_->generation = pattern_.generation();
     }
     const SystemPattern& lp = linear_->pattern;
-    if (P.rows() != lp.size() || P.nonZeros() != lp.matrix().nonZeros() ||
-        generation_of_P_ != lp.generation()) {
-      P = lp.matrix();
-      generation_of_P_ = lp.generation();
-    } else {
-      std::fill_n(P.valuePtr(), P.nonZeros(), 0.0);
-    }
+    reset_to_pattern(P, lp, generation_of_P_);
     Eigen::VectorXd R = Eigen::VectorXd::Zero(lp.size());
     linear_->assembler->assemble(X, Linearization::picard, lp, &P, R);
     add_constraint_entries(P, linear_->entry_pos);
+  }
+  /// M gets the pattern's structure (when it or its generation differs) with
+  /// zero values; otherwise its values are zeroed in place (no reallocation).
+  static void reset_to_pattern(Matrix& M, const SystemPattern& pat, long& generation) {
+    if (M.rows() != pat.size() || M.nonZeros() != pat.matrix().nonZeros() ||
+        generation != pat.generation()) {
+      M = pat.matrix();
+      generation = pat.generation();
+    } else {
+      std::fill_n(M.valuePtr(), M.nonZeros(), 0.0);
+    }
   }
   /// Changes whenever the preconditioner's structure does.
   long preconditioner_generation() {
