@@ -48,8 +48,8 @@ class GmresSolver {
   using Matrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
   using params = GmresParams;
 
-  GmresSolver() = default;
-  explicit GmresSolver(params prm) : prm_(prm) {}
+  GmresSolver() { no_refinement(); }
+  explicit GmresSolver(params prm) : prm_(prm) { no_refinement(); }
   params& parameters() { return prm_; }
   /// The relative tolerance of the next solves (NonlinearSolver's forcing term).
   void set_tolerance(double tol) { prm_.tol = tol; }
@@ -155,6 +155,14 @@ class GmresSolver {
   static constexpr const char* name() { return "GMRES + linear-triangle LU"; }
 
  private:
+  // GMRES corrects what the preconditioner leaves; refining its solves (LU
+  // solvers that can) would only repeat products with P.
+  void no_refinement() {
+    if constexpr (requires(Preconditioner& p) { p.set_refinement_steps(0); }) {
+      M_.set_refinement_steps(0);
+      direct_.set_refinement_steps(0);
+    }
+  }
   template <class F>
   bool guard(F&& f) {
     try {
@@ -171,7 +179,9 @@ class GmresSolver {
     direct_.analyze(A);
     direct_.factorize(A);
     frozen_ = true;
-    return direct_.solve(b);
+    Eigen::VectorXd x = direct_.solve(b);
+    x += direct_.solve(b - A * x);  // one refinement step (the LU's own are off)
+    return x;
   }
 
   params prm_;

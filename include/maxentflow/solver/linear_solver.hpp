@@ -52,6 +52,9 @@ class UmfpackSolver {
     return x;
   }
   static constexpr const char* name() { return "UMFPACK"; }
+  /// Iterative-refinement steps per solve (UMFPACK's default: up to 2, each a
+  /// product with A and a pair of triangular solves). A preconditioner needs none.
+  void set_refinement_steps(int steps) { lu_.umfpackControl()(UMFPACK_IRSTEP) = steps; }
   void control(int strategy, int ordering) {
     if (strategy >= 0) lu_.umfpackControl()(UMFPACK_STRATEGY) = strategy;
     if (ordering >= 0) lu_.umfpackControl()(UMFPACK_ORDERING) = ordering;
