@@ -36,7 +36,7 @@ int main(int argc, char** argv) {
   }
   const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   double mesh = 0, basis = 0, solve = 0, post = 0, assembly = 0, factorization = 0, linear = 0;
-  int picard = 0, newton = 0, krylov = 0, retried = 0;
+  int picard = 0, newton = 0, krylov = 0, retried = 0, pc_updates = 0, fallbacks = 0;
   for (const auto& r : sim.history()) {
     mesh += r.mesh_seconds;
     basis += r.basis_seconds;
@@ -48,14 +48,16 @@ int main(int argc, char** argv) {
     picard += r.picard;
     newton += r.newton;
     krylov += r.linear_iterations;
+    pc_updates += r.preconditioner_updates;
+    fallbacks += r.direct_fallbacks;
     retried += r.substeps > 1;
   }
   std::printf(
       "BENCH extrusion nodes=%d steps=%d completed=%d threads=%d total_s=%.3f per_step_s=%.4f "
       "mesh_s=%.3f basis_s=%.3f solve_s=%.3f assembly_s=%.3f factorization_s=%.3f linear_s=%.3f "
-      "post_s=%.3f output_s=%.3f picard=%d newton=%d krylov=%d retried_steps=%d target_total_s=5\n",
+      "post_s=%.3f output_s=%.3f picard=%d newton=%d krylov=%d preconditioner_updates=%d direct_fallbacks=%d retried_steps=%d target_total_s=5\n",
       s.nx * s.ny, steps, done, max_threads(), total, total / std::max(1, done), mesh, basis, solve,
-      assembly, factorization, linear, post, output, picard, newton, krylov, retried);
+      assembly, factorization, linear, post, output, picard, newton, krylov, pc_updates, fallbacks, retried);
   std::filesystem::remove_all(dir);
   return done == steps ? 0 : 1;
 }

@@ -16,6 +16,7 @@ struct Setup {
   /// billet next to the ram about 4:1 along the ram face.
   bool rezone = true;
   double rezone_min = 0.35, rezone_max = 2.5;
+  Predictor predictor = Predictor::spatial;  ///< steady flow through the die
   double opening() const { return (1.0 - reduction) * height; }
 };
 
@@ -24,7 +25,9 @@ inline Eigen::Vector2d to_model(const Setup& s, const Eigen::Vector2d& q) {
   return s.axisymmetric ? Eigen::Vector2d(q.y(), s.length - q.x()) : q;
 }
 
-inline Stepper<NortonHoff> make_simulation(const Setup& s) {
+/// Linear: the stepper's linear-solver policy (GmresSolver<> by default).
+template <LinearSolverPolicy Linear = GmresSolver<>>
+Stepper<NortonHoff, Linear> make_simulation(const Setup& s) {
   Eigen::Matrix2Xd x(2, s.nx * s.ny);
   for (int j = 0; j < s.ny; ++j)
     for (int i = 0; i < s.nx; ++i)
@@ -41,6 +44,7 @@ inline Stepper<NortonHoff> make_simulation(const Setup& s) {
   // 344 iterations and 17k Krylov against 442 and 22k).
   prm.solver.newton_from_warm_start = false;
   prm.solver.switch_increment = 0.1;
+  prm.predictor = s.predictor;
   prm.adapt.enabled = s.rezone;
   prm.adapt.min_ratio = s.rezone_min;
   prm.adapt.max_ratio = s.rezone_max;
@@ -50,7 +54,7 @@ inline Stepper<NortonHoff> make_simulation(const Setup& s) {
   if (s.axisymmetric)
     for (Eigen::Index a = 0; a < x.cols(); ++a) x.col(a) = to_model(s, x.col(a));
   // d_min far below the process strain rate V / L (see NortonHoff).
-  Stepper<NortonHoff> sim(x, NortonHoff(s.mu0, s.n, s.d_min * s.V / s.length), prm);
+  Stepper<NortonHoff, Linear> sim(x, NortonHoff(s.mu0, s.n, s.d_min * s.V / s.length), prm);
   const double H = s.height, L = s.length;
   const Eigen::Vector2d along = s.axisymmetric ? Eigen::Vector2d(0, -1) : Eigen::Vector2d(1, 0);
   RigidTool ram = flat_plate("ram", to_model(s, {0, 0.5 * H}), along, 0.75 * H);

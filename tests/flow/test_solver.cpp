@@ -1,9 +1,12 @@
 // The nonlinear solver: consistent Newton tangent, quadratic convergence,
-// thread-count independence, loud failures.
+// thread-count independence, loud failures; GMRES and its preconditioner.
 #include <catch2/catch.hpp>
 
 #include <cmath>
 #include <random>
+#include <vector>
+
+#include <Eigen/SparseLU>
 
 #include "../support/flow_problems.hpp"
 
@@ -144,4 +147,96 @@ TEST_CASE("Norton-Hoff viscosity and its derivative", "[flow][material]") {
   CHECK(std::isfinite(m.viscosity(0.0).mu));
   CHECK_THROWS_AS(NortonHoff(-1.0, 0.2), Error);
   CHECK_THROWS_AS(NortonHoff(150.0, 0.2, 0.0), Error);
+}
+
+namespace {
+
+// A 1-D convection-diffusion matrix: unsymmetric, and with a Jacobi
+// preconditioner GMRES needs far more than a few iterations.
+Eigen::SparseMatrix<double> convection_diffusion(int n) {
+  std::vector<Eigen::Triplet<double>> t;
+  for (int i = 0; i < n; ++i) {
+    t.emplace_back(i, i, 2.0);
+    if (i > 0) t.emplace_back(i, i - 1, -1.4);
+    if (i + 1 < n) t.emplace_back(i, i + 1, -0.6);
+  }
+  Eigen::SparseMatrix<double> A(n, n);
+  A.setFromTriplets(t.begin(), t.end());
+  return A;
+}
+
+}  // namespace
+
+TEST_CASE("GMRES: exact preconditioner, stagnation without and with the direct fallback",
+          "[flow][solver][gmres]") {
+  const int n = 300;
+  const Eigen::SparseMatrix<double> A = convection_diffusion(n);
+  Eigen::VectorXd b(n);
+  for (int i = 0; i < n; ++i) b[i] = std::sin(0.1 * i) + 1.0;
+  Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(A);
+  const Eigen::VectorXd x_exact = lu.solve(b);
+
+  SECTION("P = A: one iteration") {
+    GmresSolver<> g;
+    g.analyze_preconditioner(A);
+    g.factorize_preconditioner(A);
+    const Eigen::VectorXd x = g.solve(A, b);
+    CHECK(g.last_iterations() == 1);
+    CHECK(g.converged());
+    CHECK((x - x_exact).norm() <= 1e-10 * x_exact.norm());
+  }
+  SECTION("P = diag(A), short restart") {
+    GmresParams prm;
+    prm.tol = 1e-10;
+    prm.restart = 8;
+    prm.max_iterations = 16;
+    GmresSolver<> g(prm);
+    Eigen::SparseMatrix<double> D(n, n);
+    D.setIdentity();
+    D *= 2.0;
+    g.analyze_preconditioner(D);
+    g.factorize_preconditioner(D);
+    // No fallback: one restart cycle, the last iterate, not converged.
+    const Eigen::VectorXd x1 = g.solve(A, b, false);
+    CHECK(g.last_iterations() == prm.restart);
+    CHECK_FALSE(g.converged());
+    CHECK(g.direct_fallbacks() == 0);
+    CHECK((b - A * x1).norm() < b.norm());  // GMRES never increases the residual
+    CHECK(g.last_residual() == Approx((b - A * x1).norm() / b.norm()).epsilon(1e-6));
+    // With it: the direct LU of A, then kept as the preconditioner.
+    const Eigen::VectorXd x2 = g.solve(A, b);
+    CHECK(g.direct_fallbacks() == 1);
+    CHECK(g.converged());
+    CHECK((x2 - x_exact).norm() <= 1e-10 * x_exact.norm());
+    const Eigen::VectorXd x3 = g.solve(A, 2.0 * b);
+    CHECK(g.last_iterations() <= 2);
+    CHECK(g.direct_fallbacks() == 1);
+    CHECK((x3 - 2.0 * x_exact).norm() <= 1e-9 * x_exact.norm());
+  }
+}
+
+TEST_CASE("the Krylov preconditioner is kept while it works, with the same solution",
+          "[flow][solver][gmres]") {
+  Eigen::VectorXd X_every, X_kept;
+  SolveReport every, kept;
+  {
+    auto P = compression(0.2);
+    NonlinearSolverParams prm;
+    prm.preconditioner_refresh = 0;  // rebuilt every iteration
+    NonlinearSolver<GmresSolver<>> s(prm);
+    every = s.solve(*P.system, X_every);
+  }
+  {
+    auto P = compression(0.2);
+    NonlinearSolver<GmresSolver<>> s;  // default: rebuilt when GMRES slows down
+    kept = s.solve(*P.system, X_kept);
+  }
+  INFO(every.log() << "---\n" << kept.log());
+  REQUIRE(every.converged);
+  REQUIRE(kept.converged);
+  CHECK(every.preconditioner_updates == every.iterations());
+  CHECK(kept.preconditioner_updates >= 1);
+  CHECK(kept.preconditioner_updates < kept.iterations());
+  CHECK(kept.direct_fallbacks == 0);
+  CHECK((X_every - X_kept).lpNorm<Eigen::Infinity>() <= 1e-7 * X_every.lpNorm<Eigen::Infinity>());
 }

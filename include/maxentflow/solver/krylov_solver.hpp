@@ -31,7 +31,10 @@ concept PreconditionedLinearSolver =
 struct GmresParams {
   double tol = 1e-9;       ///< |b - A x| <= tol |b|
   int restart = 120;       ///< Krylov basis size before a restart
-  int max_iterations = 150;  ///< then a direct LU of A, kept as the preconditioner
+  /// Then a direct LU of A, kept as the preconditioner. When GMRES fails here
+  /// it stagnates (E2, 32 x 32: still 1e-3..1e-4 after 600 iterations), so
+  /// more iterations would not save the LU.
+  int max_iterations = 150;
   bool direct_fallback = true;  ///< no convergence: factorize A itself (slow but sure)
 };
 
@@ -65,8 +68,11 @@ class GmresSolver {
     usable_ = analyzed_ && guard([&] { M_.factorize(P); });
   }
 
-  /// x with |b - A x| <= tol |b|, from x = 0.
-  Eigen::VectorXd solve(const Matrix& A, const Eigen::VectorXd& b) {
+  /// x with |b - A x| <= tol |b|, from x = 0. With allow_fallback false a
+  /// solve that does not converge in one restart cycle returns GMRES's last
+  /// iterate (converged() is then false) instead of going on and falling
+  /// back to a direct LU (for a caller that can first try a new preconditioner).
+  Eigen::VectorXd solve(const Matrix& A, const Eigen::VectorXd& b, bool allow_fallback = true) {
     const char* where = "GmresSolver::solve";
     require(A.rows() == b.size() && A.cols() == b.size(), "A and b sizes differ", where);
     const Eigen::Index n = b.size();
@@ -90,22 +96,23 @@ class GmresSolver {
     Eigen::VectorXd r = b, w;
     double rnorm = bnorm;
     const double target = prm_.tol * bnorm;
-    while (last_iterations_ < prm_.max_iterations) {
+    const int max_iterations = allow_fallback ? prm_.max_iterations : std::min(prm_.max_iterations, m);
+    while (last_iterations_ < max_iterations) {
       V_.col(0) = r / rnorm;
       g_.setZero();
       g_[0] = rnorm;
       int j = 0;
-      for (; j < m && last_iterations_ < prm_.max_iterations; ++j) {
+      for (; j < m && last_iterations_ < max_iterations; ++j) {
         ++last_iterations_;
         w.noalias() = Ar_ * M.solve(V_.col(j));
-        // Modified Gram-Schmidt, repeated once ("twice is enough") for the
-        // orthogonality a tight tolerance needs.
-        for (int pass = 0; pass < 2; ++pass)
-          for (int i = 0; i <= j; ++i) {
-            const double hij = V_.col(i).dot(w);
-            H_(i, j) += hij;
-            w -= hij * V_.col(i);
-          }
+        // Classical Gram-Schmidt, repeated once ("twice is enough") for the
+        // orthogonality a tight tolerance needs; as matrix-vector products,
+        // which stay cheap next to A's product up to the restart length.
+        for (int pass = 0; pass < 2; ++pass) {
+          h_.noalias() = V_.leftCols(j + 1).transpose() * w;
+          w.noalias() -= V_.leftCols(j + 1) * h_;
+          H_.col(j).head(j + 1) += h_;
+        }
         H_(j + 1, j) = w.norm();
         if (H_(j + 1, j) > 0) V_.col(j + 1) = w / H_(j + 1, j);
         for (int i = 0; i < j; ++i) {  // previous Givens rotations
@@ -136,7 +143,7 @@ class GmresSolver {
     }
     last_residual_ = rnorm / bnorm;
     MAXENTFLOW_REQUIRE(x.allFinite(), "GMRES produced NaN/Inf (singular preconditioner?)", where);
-    if (last_residual_ <= prm_.tol) return x;
+    if (last_residual_ <= prm_.tol || !allow_fallback) return x;
     require(prm_.direct_fallback,
             detail::cat("GMRES did not converge in ", last_iterations_, " iterations (relative residual ",
                         last_residual_, ")"),
@@ -145,6 +152,8 @@ class GmresSolver {
   }
 
   int last_iterations() const { return last_iterations_; }
+  /// The last solve reached the tolerance (after a direct fallback: its own residual did).
+  bool converged() const { return last_residual_ <= prm_.tol; }
   /// False after the preconditioner failed to factorize (solves go direct).
   bool preconditioner_usable() const { return usable_; }
   double last_residual() const { return last_residual_; }
@@ -181,6 +190,7 @@ class GmresSolver {
     frozen_ = true;
     Eigen::VectorXd x = direct_.solve(b);
     x += direct_.solve(b - A * x);  // one refinement step (the LU's own are off)
+    last_residual_ = (b - A * x).norm() / b.norm();
     return x;
   }
 
@@ -189,7 +199,7 @@ class GmresSolver {
   Preconditioner M_, direct_;
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> Ar_;
   Eigen::MatrixXd V_, H_;
-  Eigen::VectorXd cs_, sn_, g_;
+  Eigen::VectorXd cs_, sn_, g_, h_;
   int last_iterations_ = 0, direct_fallbacks_ = 0;
   double last_residual_ = 0.0;
 };

@@ -62,6 +62,8 @@ struct SolveReport {
   bool converged = false;
   int picard = 0, newton = 0;
   int linear_iterations = 0;  ///< Krylov iterations, all solves
+  int preconditioner_updates = 0;  ///< preconditioner factorizations (Krylov policies)
+  int direct_fallbacks = 0;  ///< Krylov solves that fell back to a direct LU of A
   double residual = 0.0, increment = 0.0;
   double assembly_seconds = 0.0, factorization_seconds = 0.0, solve_seconds = 0.0;
   std::vector<IterationRecord> history;
@@ -105,6 +107,10 @@ struct NonlinearSolverParams {
   /// eta_min, eta_max), res the current relative residual.
   double eta_max = 1e-2;
   double eta_min = 1e-12;
+  /// Krylov policies: the preconditioner is rebuilt (assembled, factorized)
+  /// once a solve needs more than this times the Krylov iterations per decade
+  /// of residual reduction of the first solve with it; <= 0: every iteration.
+  double preconditioner_refresh = 1.1;
   std::ostream* log = nullptr;     ///< per-iteration log
 };
 
@@ -142,6 +148,8 @@ class NonlinearSolver {
     Linearization phase = prm_.newton && prm_.newton_from_warm_start && sys.velocity_norm(X) > 0
                               ? Linearization::newton
                               : Linearization::picard;
+    int fallbacks_before = 0;
+    if constexpr (requires { linear_.direct_fallbacks(); }) fallbacks_before = linear_.direct_fallbacks();
     bool full_newton_step = false;
     double increment = std::numeric_limits<double>::infinity();
     Eigen::VectorXd R, Rtry, Xtry, dx;
@@ -161,26 +169,55 @@ class NonlinearSolver {
       if constexpr (PreconditionedLinearSolver<Linear>) {
         static_assert(PreconditionedSystem<System>,
                       "a Krylov policy needs a system with assemble_preconditioner()");
-        t0 = clock::now();
-        sys.assemble_preconditioner(X, P_);
-        rep.assembly_seconds += seconds(t0);
-        t0 = clock::now();
-        if (sys.preconditioner_generation() != analyzed_generation_ || analyzed_size_ != n) {
-          linear_.analyze_preconditioner(P_);
-          analyzed_generation_ = sys.preconditioner_generation();
-          analyzed_size_ = n;
-        }
-        linear_.factorize_preconditioner(P_);
-        rep.factorization_seconds += seconds(t0);
+        const bool new_structure =
+            sys.preconditioner_generation() != analyzed_generation_ || analyzed_size_ != n;
+        auto refresh = [&] {
+          t0 = clock::now();
+          sys.assemble_preconditioner(X, P_);
+          rep.assembly_seconds += seconds(t0);
+          t0 = clock::now();
+          if (sys.preconditioner_generation() != analyzed_generation_ || analyzed_size_ != n) {
+            linear_.analyze_preconditioner(P_);
+            analyzed_generation_ = sys.preconditioner_generation();
+            analyzed_size_ = n;
+          }
+          linear_.factorize_preconditioner(P_);
+          rep.factorization_seconds += seconds(t0);
+          fresh_rate_ = -1.0;
+          ++rep.preconditioner_updates;
+        };
+        // The preconditioner only steers GMRES: keep its LU while GMRES needs
+        // no more iterations per decade of residual than just after it was made.
+        const bool stale = !(new_structure || prm_.preconditioner_refresh <= 0 ||
+                             rate_ > prm_.preconditioner_refresh * fresh_rate_);
+        if (!stale) refresh();
         if constexpr (requires { linear_.set_tolerance(1.0); }) {
           const double eta = std::max(res, 0.5 * prm_.residual_tol / std::max(res, 1e-300));
           linear_.set_tolerance(std::clamp(eta, prm_.eta_min, prm_.eta_max));
         }
         t0 = clock::now();
-        dx = linear_.solve(A_, -R);
+        // A kept preconditioner that GMRES cannot converge with is rebuilt
+        // before the (costly) direct fallback is tried.
+        if constexpr (requires { linear_.solve(A_, R, false); linear_.converged(); }) {
+          dx = linear_.solve(A_, -R, !stale);
+          if (stale && !linear_.converged()) {
+            rep.linear_iterations += linear_.last_iterations();
+            rep.solve_seconds += seconds(t0);
+            refresh();
+            t0 = clock::now();
+            dx = linear_.solve(A_, -R);
+          }
+        } else {
+          dx = linear_.solve(A_, -R);
+        }
         rep.solve_seconds += seconds(t0);
         linear_its = linear_.last_iterations();
         rep.linear_iterations += linear_its;
+        if constexpr (requires { linear_.last_residual(); }) {
+          const double decades = -std::log10(std::clamp(linear_.last_residual(), 1e-16, 0.5));
+          rate_ = linear_its / decades;
+          if (fresh_rate_ < 0) fresh_rate_ = std::max(rate_, 1.0);
+        }
       } else {
         t0 = clock::now();
         if (sys.structure_generation() != analyzed_generation_ || analyzed_size_ != n) {
@@ -243,6 +280,8 @@ class NonlinearSolver {
         phase = Linearization::newton;
     }
     picard_since_switch_ = 0;
+    if constexpr (requires { linear_.direct_fallbacks(); })
+      rep.direct_fallbacks = linear_.direct_fallbacks() - fallbacks_before;
     if (!rep.converged)
       throw Error(detail::cat("no convergence in ", prm_.max_iterations, " iterations (residual ",
                               rep.residual, ", increment ", rep.increment, "); history:\n", rep.log()),
@@ -257,6 +296,7 @@ class NonlinearSolver {
   long analyzed_generation_ = -1;
   int analyzed_size_ = -1;
   int picard_since_switch_ = 0;
+  double rate_ = 0.0, fresh_rate_ = -1.0;  // Krylov iterations per decade: last, after the last refresh
 };
 
 }  // namespace maxentflow

@@ -31,6 +31,16 @@
 
 namespace maxentflow {
 
+/// Where the next step's solve starts (the nodes carry coefficients, so
+/// both are a per-node velocity and pressure):
+/// - material: this step's coefficients as they are (right when a material
+///   point's velocity changes slowly, e.g. upsetting);
+/// - spatial: this step's field at the node's new position,
+///   V_a + f(x_a + dt v_a) - f(x_a), right for a flow that is steady where the
+///   tools are (extrusion, cutting): a node entering the die picks up the
+///   die's velocity instead of keeping the container's.
+enum class Predictor { material, spatial };
+
 struct StepperParams {
   Geometry geometry = Geometry::plane_strain;
   double dt = 1.0;
@@ -55,6 +65,7 @@ struct StepperParams {
   /// Node rezoning at the start of each step after the first (off by default;
   /// see node_adaptivity.hpp). h0 is the first configuration's h_a.
   NodeAdaptivityParams adapt;
+  Predictor predictor = Predictor::material;
 };
 
 /// What one step did (also one line of the progress log).
@@ -65,6 +76,7 @@ struct StepRecord {
   int substeps = 1;       ///< > 1 if the step was retried with a smaller dt
   int picard = 0, newton = 0, active_set_iterations = 0;
   int linear_iterations = 0;  ///< Krylov iterations (0 with a direct solver)
+  int preconditioner_updates = 0, direct_fallbacks = 0;  ///< see SolveReport
   int contact_nodes = 0;
   int nodes = 0;                            ///< nodes in the step's configuration
   int nodes_added = 0, nodes_removed = 0;   ///< by the rezoning before the step
@@ -285,8 +297,10 @@ class Stepper {
         sys.constraints().clear_part(part[k]);
         contacts_[k].add_rows(sys.constraints(), part[k], *mesh, *disc, *basis, tools_[k], dt);
       }
+      // A re-solve after an active-set change starts from the last solve.
+      const Eigen::VectorXd start = as == 0 ? V_ : Eigen::VectorXd(X.head(3 * N));
       X = Eigen::VectorXd::Zero(sys.size());
-      X.head(3 * N) = V_;
+      X.head(3 * N) = start;
       const auto& rows = sys.constraints().rows();
       for (std::size_t i = 0; i < rows.size(); ++i) {  // multipliers of the last solve, if any
         const auto it = lambda_guess_.find(multiplier_key(rows[i]));
@@ -299,6 +313,8 @@ class Stepper {
       rec.picard += rep.picard;
       rec.newton += rep.newton;
       rec.linear_iterations += rep.linear_iterations;
+      rec.preconditioner_updates += rep.preconditioner_updates;
+      rec.direct_fallbacks += rep.direct_fallbacks;
       rec.assembly_seconds += rep.assembly_seconds;
       rec.factorization_seconds += rep.factorization_seconds;
       rec.linear_seconds += rep.solve_seconds;
@@ -360,6 +376,7 @@ class Stepper {
         if (c.select(x_.col(seg.a), x_.col(seg.b)))
           for (int a : {seg.a, seg.b}) held.push_back({a, e, e.dot(x_.col(a)) + dt * c.value});
     }
+    if (prm_.predictor == Predictor::spatial) predict_spatial(*basis, X, v, dt);
     // Eq. (18): the nodes move with the material velocity at their position.
     x_ += dt * v;
     for (const auto& h : held) x_.col(h.node) += (h.target - h.e.dot(x_.col(h.node))) * h.e;
@@ -449,6 +466,25 @@ class Stepper {
       p_nodal_[a] = pr;
       d_nodal_[a] = std::sqrt(2.0 / 3.0 * DD);
       strain_[a] += d_nodal_[a] * dt;
+    }
+  }
+  // Predictor::spatial: V_a += f(x_a + dt v_a) - f(x_a) for f = (v, p) of
+  // this solve; a node whose new position leaves this configuration's hull
+  // (the nose of a product) keeps its coefficients.
+  void predict_spatial(const Basis& basis, const Eigen::VectorXd& X, const Eigen::Matrix2Xd& v,
+                       double dt) {
+    const int N = static_cast<int>(x_.cols());
+#pragma omp parallel for schedule(dynamic, 32)
+    for (int a = 0; a < N; ++a) {
+      const Eigen::Vector2d y = x_.col(a) + dt * v.col(a);
+      try {
+        const auto pv = basis.evaluate(y, false);
+        Eigen::Vector3d f = Eigen::Vector3d::Zero();
+        for (std::size_t j = 0; j < pv.node.size(); ++j) f += pv.p[j] * X.segment<3>(3 * pv.node[j]);
+        V_.segment<2>(3 * a) += f.head<2>() - v.col(a);
+        V_[3 * a + 2] += f[2] - p_nodal_[a];
+      } catch (const Error&) {
+      }
     }
   }
   // Rezones the cloud x_ (NodeAdaptation) and carries every per-node array
