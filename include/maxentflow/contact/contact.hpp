@@ -224,13 +224,13 @@ class ToolContact {
     return changes;
   }
 
+  /// Nodes whose state the last update() changed.
+  const std::vector<int>& changed_nodes() const { return changed_; }
+
   /// Gap at the end of the step if the node moves with v: the tool's true
   /// shape at the moved relative position, not g + dt (v - v_tool) . n, whose
   /// frozen normal is wrong at a tool corner (a node sliding round a die
   /// corner into the opening would count as penetrating the die face).
-  /// Nodes whose state the last update() changed.
-  const std::vector<int>& changed_nodes() const { return changed_; }
-
   static double predicted_gap(const RigidTool& tool, const Eigen::Vector2d& x, const Eigen::Vector2d& v,
                               double dt) {
     return tool.gap(x + dt * (v - tool.velocity()));

@@ -11,13 +11,16 @@
 // target spacing h0 (the first configuration's h_a, carried by the nodes):
 //  - an edge shorter than min_ratio h0 loses one end: an interior edge an
 //    interior end, a boundary edge an end where the boundary turns by less
-//    than max_turn (a straight tool face, the axis), never a corner; the removed node's
-//    neighbours are locked for this pass so no hole opens;
+//    than max_turn (a straight tool face, the axis), never a corner; the
+//    removed node's neighbours are locked for this pass so no hole opens;
 //  - an edge longer than max_ratio h0 gets a node at its middle (a boundary
-//    edge only where the side is straight at one end at least), unless that point is inside a tool or closer
-//    than half its h0 to a node (the diagonals of a stretched cell would
-//    otherwise put two nodes side by side) or, for an interior edge, to the
-//    boundary (a flat triangle there would be cut: a notch).
+//    edge only where the side is straight at one end at least), unless that
+//    point is inside a tool or closer than half its h0 to a node (the
+//    diagonals of a stretched cell would otherwise put two nodes side by
+//    side) or, for an interior edge, to the boundary (a flat triangle there
+//    would be cut: a notch). Boundary edges go first; a single unlocked
+//    interior node that blocks a boundary edge's middle is removed instead
+//    (the middle replaces it on the side).
 // A new node's data (velocity and pressure coefficients as the next solve's
 // start, effective strain, h0) is the mean of its edge's ends: the linear
 // interpolant along the edge. The defaults leave a 50 % reduction (2:1
