@@ -169,8 +169,6 @@ class NonlinearSolver {
       if constexpr (PreconditionedLinearSolver<Linear>) {
         static_assert(PreconditionedSystem<System>,
                       "a Krylov policy needs a system with assemble_preconditioner()");
-        const bool new_structure =
-            sys.preconditioner_generation() != analyzed_generation_ || analyzed_size_ != n;
         auto refresh = [&] {
           t0 = clock::now();
           sys.assemble_preconditioner(X, P_);
@@ -188,9 +186,10 @@ class NonlinearSolver {
         };
         // The preconditioner only steers GMRES: keep its LU while GMRES needs
         // no more iterations per decade of residual than just after it was made.
-        const bool stale = !(new_structure || prm_.preconditioner_refresh <= 0 ||
-                             rate_ > prm_.preconditioner_refresh * fresh_rate_);
-        if (!stale) refresh();
+        const bool kept = sys.preconditioner_generation() == analyzed_generation_ &&
+                           analyzed_size_ == n && prm_.preconditioner_refresh > 0 &&
+                           rate_ <= prm_.preconditioner_refresh * fresh_rate_;
+        if (!kept) refresh();
         if constexpr (requires { linear_.set_tolerance(1.0); }) {
           const double eta = std::max(res, 0.5 * prm_.residual_tol / std::max(res, 1e-300));
           linear_.set_tolerance(std::clamp(eta, prm_.eta_min, prm_.eta_max));
@@ -199,8 +198,8 @@ class NonlinearSolver {
         // A kept preconditioner that GMRES cannot converge with is rebuilt
         // before the (costly) direct fallback is tried.
         if constexpr (requires { linear_.solve(A_, R, false); linear_.converged(); }) {
-          dx = linear_.solve(A_, -R, !stale);
-          if (stale && !linear_.converged()) {
+          dx = linear_.solve(A_, -R, !kept);
+          if (kept && !linear_.converged()) {
             rep.linear_iterations += linear_.last_iterations();
             rep.solve_seconds += seconds(t0);
             refresh();
