@@ -36,6 +36,7 @@
 #include <maxentflow/material/norton_hoff.hpp>
 #include <maxentflow/mesh/integration_mesh.hpp>
 #include <maxentflow/solver/nonlinear_solver.hpp>
+#include <maxentflow/stepper/stepper.hpp>
 
 #include <sys/resource.h>
 
@@ -114,6 +115,7 @@ Figures run(int side) {
   t0 = clock_type::now();
   MaxEntBasis<2>::params bp;
   bp.gamma = 1.6;
+  bp.tol0 = StepperParams{}.tol0;  // the forming runs' support cut-off
   const MaxEntBasis<2> basis(x, mesh.h(), bp);
   const FlowDiscretization disc(mesh, basis, Geometry::plane_strain);
   f.t["basis"] = since(t0);

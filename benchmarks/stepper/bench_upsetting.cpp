@@ -1,7 +1,10 @@
 // Benchmark: E1 upsetting (21 x 25 nodes, 100 steps, axisymmetric), the whole
 // run with its time per step split into mesh, basis, solve (assembly + LU,
 // active set), and post-processing + VTU/CSV output. Never fails on time.
-//   bench_upsetting [steps] [gmres|direct]
+//   bench_upsetting [steps] [gmres|direct] [--no-peer]
+// Where FreeFem++ is installed it also times the FEM peer's E2 step-1 solve
+// (32 per side; spec target: the whole E1 run within that time) and prints the ratio.
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -11,10 +14,12 @@
 
 #include <maxentflow/maxentflow.hpp>
 
+#include "peer/peer.hpp"
+
 using namespace maxentflow;
 
 template <class Linear>
-int run(int steps, const char* solver) {
+int run(int steps, const char* solver, bool peer) {
   const int nx = 21, ny = 25;
   const double R = 10, H = 12, V = 0.06;
   Eigen::Matrix2Xd x(2, nx * ny);
@@ -42,7 +47,7 @@ int run(int steps, const char* solver) {
   }
   const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   double mesh = 0, basis = 0, solve = 0, post = 0, assembly = 0, factorization = 0, linear = 0;
-  int picard = 0, newton = 0, krylov = 0;
+  int picard = 0, newton = 0, krylov = 0, max_krylov = 0, fallbacks = 0;
   for (const auto& r : sim.history()) {
     mesh += r.mesh_seconds;
     basis += r.basis_seconds;
@@ -51,15 +56,19 @@ int run(int steps, const char* solver) {
     picard += r.picard;
     newton += r.newton;
     krylov += r.linear_iterations;
+    max_krylov = std::max(max_krylov, r.max_linear_iterations);
+    fallbacks += r.direct_fallbacks;
     assembly += r.assembly_seconds;
     factorization += r.factorization_seconds;
     linear += r.linear_seconds;
   }
   std::printf(
       "BENCH upsetting nodes=%d steps=%d threads=%d total_s=%.3f per_step_s=%.4f mesh_s=%.3f "
-      "basis_s=%.3f solve_s=%.3f (assembly_s=%.3f factorization_s=%.3f linear_s=%.3f) post_s=%.3f output_s=%.3f picard=%d newton=%d krylov=%d solver=%s\n",
+      "basis_s=%.3f solve_s=%.3f (assembly_s=%.3f factorization_s=%.3f linear_s=%.3f) post_s=%.3f output_s=%.3f picard=%d newton=%d krylov=%d max_krylov_per_solve=%d direct_fallbacks=%d solver=%s\n",
       nx * ny, steps, max_threads(), total, total / steps, mesh, basis, solve, assembly, factorization, linear, post, output, picard,
-      newton, krylov, solver);
+      newton, krylov, max_krylov, fallbacks, solver);
+  const double ps = peer ? bench::peer_step1_seconds(32) : -1.0;
+  if (ps > 0) std::printf("BENCH upsetting_vs_peer run_over_peer_step1=%.2f target=1\n", total / ps);
   std::filesystem::remove_all(dir);
   return 0;
 }
@@ -67,6 +76,7 @@ int run(int steps, const char* solver) {
 int main(int argc, char** argv) {
   const int steps = argc > 1 ? std::atoi(argv[1]) : 100;
   const std::string solver = argc > 2 ? argv[2] : "gmres";
-  if (solver == "direct") return run<UmfpackSolver>(steps, "direct");
-  return run<GmresSolver<>>(steps, "gmres");
+  const bool peer = !(argc > 3 && std::string(argv[3]) == "--no-peer");
+  if (solver == "direct") return run<UmfpackSolver>(steps, "direct", peer);
+  return run<GmresSolver<>>(steps, "gmres", peer);
 }

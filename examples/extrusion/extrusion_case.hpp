@@ -10,6 +10,7 @@ struct Setup {
   int nx = 32, ny = 32;
   double length = 300, height = 300, reduction = 0.5, land = 30, V = 5, dt = 0.3;
   double gamma = 1.6, Cs = 0.5, alpha = 1.3, mu0 = 150, n = 0.2;
+  double tol0 = StepperParams{}.tol0;  ///< max-ent support cut-off
   double d_min = 1e-6;  ///< Norton-Hoff regularization, relative to V / L
   bool axisymmetric = false;
   /// Node rezoning (node_adaptivity.hpp): the end of the stroke compresses the
@@ -36,6 +37,7 @@ Stepper<NortonHoff, Linear> make_simulation(const Setup& s) {
   prm.geometry = s.axisymmetric ? Geometry::axisymmetric : Geometry::plane_strain;
   prm.dt = s.dt;
   prm.gamma = s.gamma;
+  prm.tol0 = s.tol0;
   prm.mesh.alpha = s.alpha;
   prm.stabilization.Cs = s.Cs;
   // Each step starts from the last one's coefficients, ~10-30 % off in

@@ -139,6 +139,8 @@ int main(int argc, char** argv) {
   app.add_option("--land", s.land, "Die land length")->check(CLI::NonNegativeNumber);
   app.add_option("--velocity", s.V, "Ram speed")->check(CLI::PositiveNumber);
   app.add_option("--gamma", s.gamma, "Max-ent locality gamma")->check(CLI::PositiveNumber);
+  app.add_option("--tol0", s.tol0, "Max-ent support cut-off on the prior weight")
+      ->check(CLI::Range(1e-300, 0.5));
   app.add_option("--Cs", s.Cs, "Stabilization constant Cs (Eq. 14)")->check(CLI::NonNegativeNumber);
   app.add_option("--alpha", s.alpha, "Alpha-shape parameter (circumradius <= alpha h)")->check(CLI::PositiveNumber);
   app.add_option("--mu0", s.mu0, "Norton-Hoff mu0")->check(CLI::PositiveNumber);

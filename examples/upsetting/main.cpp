@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
   CLI::App app{"maxentflow E1: frictionless upsetting (paper Fig. 5)"};
   bool plane_strain = false, no_plots = false;
   int nx = 21, ny = 25, steps = 100, vtu_every = 10;
+  double tol0 = StepperParams{}.tol0;
   double radius = 10, height = 12, V = 0.06, dt = 1.0, gamma = 1.6, Cs = 0.5, mu0 = 150, n = 0.2;
   double alpha = 1.3, check = -1;
   std::string out = "results/upsetting";
@@ -38,6 +39,8 @@ int main(int argc, char** argv) {
   app.add_option("--height", height, "Billet height")->check(CLI::PositiveNumber);
   app.add_option("--velocity", V, "Top plate speed")->check(CLI::PositiveNumber);
   app.add_option("--gamma", gamma, "Max-ent locality gamma")->check(CLI::PositiveNumber);
+  app.add_option("--tol0", tol0, "Max-ent support cut-off on the prior weight")
+      ->check(CLI::Range(1e-300, 0.5));
   app.add_option("--Cs", Cs, "Stabilization constant Cs (Eq. 14)")->check(CLI::NonNegativeNumber);
   app.add_option("--alpha", alpha, "Alpha-shape parameter (circumradius <= alpha h)")->check(CLI::PositiveNumber);
   app.add_option("--mu0", mu0, "Norton-Hoff mu0")->check(CLI::PositiveNumber);
@@ -59,6 +62,7 @@ int main(int argc, char** argv) {
     prm.geometry = axi ? Geometry::axisymmetric : Geometry::plane_strain;
     prm.dt = dt;
     prm.gamma = gamma;
+    prm.tol0 = tol0;
     prm.mesh.alpha = alpha;
     prm.stabilization.Cs = Cs;
     // d_min far below the process strain rate V / H (see NortonHoff).

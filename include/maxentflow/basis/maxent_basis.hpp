@@ -377,6 +377,7 @@ class MaxEntBasis {
       const double tol = on_hull_tol(h_ref);
       Point inward = Point::Zero();
       int on = -1;
+      bool on_within = false;  // x lies within the chosen facet's extent
       for (int f : grid_.facets(cell)) {
         const auto& F = hull_[static_cast<std::size_t>(f)];
         const double s = F.n.dot(x) - F.c;
@@ -384,12 +385,42 @@ class MaxEntBasis {
           throw Error(detail::cat("point lies outside the convex hull of the nodes (by ", s, ")"),
                       where_point(x, id));
         if (std::abs(s) <= tol) {
-          if (on < 0) on = f;
+          // Next to a nearly straight hull vertex, x is within tol of both
+          // facets' lines: restrict to the facet that x lies on, not to the
+          // neighbour whose line merely passes within tol.
+          const bool within = ((x - F.lo).array() >= -tol).all() && ((F.hi - x).array() >= -tol).all();
+          if (on < 0 || (within && !on_within)) {
+            on = f;
+            on_within = within;
+          }
           inward -= F.n;
         }
       }
       if (on >= 0)
         return solve_on_hull(x, ws, m, h_ref, hull_[static_cast<std::size_t>(on)], inward, gradients, id);
+      // Just inside a facet (beyond tol, within near_hull) the dual is too stiff
+      // for Newton: there the basis is, to that distance, the facet's own.
+      const double near_hull = 1e-6 * h_ref;
+      int nearest = -1;
+      double s_near = -near_hull;
+      for (int f : grid_.facets(cell)) {
+        const auto& F = hull_[static_cast<std::size_t>(f)];
+        const double s = F.n.dot(x) - F.c;
+        const bool within = ((x - F.lo).array() >= -near_hull).all() && ((F.hi - x).array() >= -near_hull).all();
+        if (within && s >= s_near) {
+          nearest = f;
+          s_near = s;
+        }
+      }
+      if (nearest >= 0) {
+        try {
+          return solve_interior(x, ws, m, h_ref, lambda0, gradients, id);
+        } catch (const Error&) {
+          const auto& F = hull_[static_cast<std::size_t>(nearest)];
+          gather(x, cell, ws);
+          return solve_on_hull(x, ws, m, h_ref, F, -F.n, gradients, id, -s_near);
+        }
+      }
     }
     return solve_interior(x, ws, m, h_ref, lambda0, gradients, id);
   }
@@ -455,7 +486,7 @@ class MaxEntBasis {
 
   Info solve_on_hull(const Point& x, Workspace& ws, int m, double h_ref,
                      const detail::HalfSpace<Dim>& facet, const Point& inward, bool gradients,
-                     int id) const {
+                     int id, double depth = 0.0) const {
     Points xa(Dim, m);
     for (int j = 0; j < m; ++j) xa.col(j) = nodes_.col(ws.support[static_cast<std::size_t>(j)]);
     const Eigen::ArrayXd beta = ws.dual.beta.head(m);
@@ -463,7 +494,20 @@ class MaxEntBasis {
     Info info;
     info.m = m;
     info.on_hull = true;
-    info.iterations = restrict_to_facet<Dim>(x, xa, beta, facet.n, facet.c, on_hull_tol(h_ref), p, id, x);
+    // Nodes count as on the facet within the point's tolerance; where the cloud's
+    // side is straight only to a few 1e-10 h (round-off of updated-Lagrangian
+    // steps), the nodes next to x can sit just beyond it, so the facet's nodes
+    // no longer bracket x: widen the node tolerance by decades, up to 1e-6 h.
+    const double tol_max = std::max(1e-6 * h_ref, 2.0 * depth);
+    for (double tol = std::max(on_hull_tol(h_ref), 2.0 * depth);; tol *= 10.0) {
+      try {
+        p.setZero();
+        info.iterations = restrict_to_facet<Dim>(x, xa, beta, facet.n, facet.c, tol, p, id, x);
+        break;
+      } catch (const Error&) {
+        if (tol * 10.0 > tol_max) throw;
+      }
+    }
     if (gradients) {
       // Gradients do not exist on the facet from outside; take the one-sided limit
       // just inside, with the same support.

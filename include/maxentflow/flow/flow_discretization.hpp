@@ -149,22 +149,28 @@ inline void FlowDiscretization::build(const Mesh& mesh, const Basis& basis, Geom
 
   // Pass 1: U_T of every triangle (parallel, per-thread scratch).
   std::vector<std::vector<int>> unions(static_cast<std::size_t>(nt));
-#pragma omp parallel for schedule(dynamic, 256)
-  for (int t = 0; t < nt; ++t) {
-    std::vector<int>& u = unions[static_cast<std::size_t>(t)];
-    for (int q = 0; q < nq_; ++q) {
-      const auto s = cell_basis.nodes(t * nq_ + q);
-      u.insert(u.end(), s.begin(), s.end());
-    }
-    for (int i = 0; i < 3; ++i) {
-      const int e = mesh.triangle_edge(t, i);
-      for (int k = 0; k < ne_; ++k) {
-        const auto s = edge_basis_.nodes(e * ne_ + k);
-        u.insert(u.end(), s.begin(), s.end());
+#pragma omp parallel
+  {
+    // Each point's support is already sorted; a mark per node (the last
+    // triangle that took it) keeps the union free of duplicates before the sort.
+    std::vector<int> mark(static_cast<std::size_t>(n_nodes_), -1);
+#pragma omp for schedule(dynamic, 256)
+    for (int t = 0; t < nt; ++t) {
+      std::vector<int>& u = unions[static_cast<std::size_t>(t)];
+      auto take = [&](std::span<const int> s) {
+        for (int a : s)
+          if (mark[static_cast<std::size_t>(a)] != t) {
+            mark[static_cast<std::size_t>(a)] = t;
+            u.push_back(a);
+          }
+      };
+      for (int q = 0; q < nq_; ++q) take(cell_basis.nodes(t * nq_ + q));
+      for (int i = 0; i < 3; ++i) {
+        const int e = mesh.triangle_edge(t, i);
+        for (int k = 0; k < ne_; ++k) take(edge_basis_.nodes(e * ne_ + k));
       }
+      std::sort(u.begin(), u.end());
     }
-    std::sort(u.begin(), u.end());
-    u.erase(std::unique(u.begin(), u.end()), u.end());
   }
   node_offset_.assign(static_cast<std::size_t>(nt) + 1, 0);
   value_offset_.assign(static_cast<std::size_t>(nt) + 1, 0);

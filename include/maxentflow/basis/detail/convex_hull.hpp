@@ -55,22 +55,41 @@ inline std::vector<HalfSpace<2>> hull_halfspaces(const Eigen::Matrix<double, 2, 
   for (Eigen::Index i = 0; i < x.cols(); ++i) pts.emplace_back(x(0, i), x(1, i));
   std::vector<K::Point_2> out;
   CGAL::convex_hull_2(pts.begin(), pts.end(), std::back_inserter(out));  // counter-clockwise
-  std::vector<Eigen::Vector2d> h;
-  for (const auto& p : out) h.emplace_back(p.x(), p.y());
-  for (bool changed = true; changed && h.size() > 3;) {
+  std::vector<Eigen::Vector2d> v;
+  for (const auto& p : out) v.emplace_back(p.x(), p.y());
+  // A vertex is dropped only if it and every vertex dropped between its kept
+  // neighbours stay within merge_tol of the facet that replaces them: merges
+  // that cascade along a jittered straight side would otherwise leave dropped
+  // vertices (and points on their segments) outside the hull by more than that.
+  const std::size_t nv = v.size();
+  std::vector<char> kept(nv, 1);
+  auto near_line = [&](std::size_t a, std::size_t c) {
+    const Eigen::Vector2d e = v[c] - v[a];
+    const double len = e.norm();
+    if (!(len > 0)) return false;
+    for (std::size_t j = (a + 1) % nv; j != c; j = (j + 1) % nv)
+      if (std::abs(e.x() * (v[j].y() - v[a].y()) - e.y() * (v[j].x() - v[a].x())) / len > merge_tol)
+        return false;
+    return true;
+  };
+  std::size_t left = nv;
+  for (bool changed = true; changed && left > 3;) {
     changed = false;
-    for (std::size_t i = 0; i < h.size() && h.size() > 3; ++i) {
-      const Eigen::Vector2d& a = h[(i + h.size() - 1) % h.size()];
-      const Eigen::Vector2d& b = h[i];
-      const Eigen::Vector2d& c = h[(i + 1) % h.size()];
-      const Eigen::Vector2d e = c - a;
-      const double len = e.norm();
-      if (len > 0 && std::abs(e.x() * (b.y() - a.y()) - e.y() * (b.x() - a.x())) / len <= merge_tol) {
-        h.erase(h.begin() + static_cast<std::ptrdiff_t>(i));
+    for (std::size_t i = 0; i < nv && left > 3; ++i) {
+      if (!kept[i]) continue;
+      std::size_t a = (i + nv - 1) % nv, c = (i + 1) % nv;
+      while (!kept[a]) a = (a + nv - 1) % nv;
+      while (!kept[c]) c = (c + 1) % nv;
+      if (near_line(a, c)) {
+        kept[i] = 0;
+        --left;
         changed = true;
       }
     }
   }
+  std::vector<Eigen::Vector2d> h;
+  for (std::size_t i = 0; i < nv; ++i)
+    if (kept[i]) h.push_back(v[i]);
   std::vector<HalfSpace<2>> hs;
   for (std::size_t i = 0; i < h.size(); ++i) {
     const Eigen::Vector2d a = h[i], b = h[(i + 1) % h.size()];
