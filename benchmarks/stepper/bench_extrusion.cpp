@@ -1,4 +1,4 @@
-// Benchmark: E2 extrusion (spec section 3), the whole run with its time split
+// Benchmark: E2 extrusion (docs/cases.md), the whole run with its time split
 // into mesh, basis, assembly, factorization (preconditioner), linear solves,
 // post-processing and VTU/CSV output. Never fails on time.
 //   bench_extrusion [nodes_per_side = 32] [steps = 100] [dt = 0.3] [--no-peer]

@@ -1,4 +1,4 @@
-// The E2 extrusion case (spec section 3) as a Stepper: billet, ram, die,
+// The E2 extrusion case (docs/cases.md) as a Stepper: billet, ram, die,
 // symmetry axis. Shared by the `extrusion` example and its benchmark.
 #pragma once
 

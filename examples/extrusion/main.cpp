@@ -1,4 +1,4 @@
-// Example E2 (spec section 3; the paper's Figs. 6 and 7): plane-strain forward
+// Example E2 (docs/cases.md; the paper's Figs. 6 and 7): plane-strain forward
 // extrusion through a square die, half model, frictionless rigid tools.
 //
 //   extrusion                                 (E2: 32 x 32 nodes, 100 steps, dt = 0.3)

@@ -1,4 +1,4 @@
-// Example E1 (spec section 3): upsetting of a cylindrical billet between flat,
+// Example E1 (docs/cases.md): upsetting of a cylindrical billet between flat,
 // frictionless plates; axisymmetric by default, --plane-strain for a strip.
 //
 //   upsetting                                 (E1: 21 x 25 nodes, 100 steps, dt = 1)

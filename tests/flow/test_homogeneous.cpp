@@ -1,4 +1,4 @@
-// Verification V1 and V2 (spec section 2): homogeneous plane-strain compression
+// Verification V1 and V2 (docs/cases.md): homogeneous plane-strain compression
 // and axisymmetric upsetting are reproduced to round-off on one configuration.
 #include <catch2/catch.hpp>
 

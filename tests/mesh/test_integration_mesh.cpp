@@ -708,7 +708,7 @@ TEST_CASE("edge and boundary quadrature: on their edges, closed, outward", "[mes
   }
   // Per triangle, the outward normals integrate to zero over its three edges
   // (the normal points out of `left`, into `right`): what the consistency
-  // correction of cases.md V1 relies on.
+  // correction of docs/cases.md V1 relies on.
   Eigen::Matrix2Xd closure = Eigen::Matrix2Xd::Zero(2, m.number_of_triangles());
   for (Eigen::Index k = 0; k < qe.size(); ++k) {
     const auto& e = m.edges()[static_cast<std::size_t>(qe.cell[static_cast<std::size_t>(k)])];

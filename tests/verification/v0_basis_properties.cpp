@@ -1,4 +1,4 @@
-// V0 (../shared/spec/cases.md): max-ent basis properties on regular, perturbed and
+// V0 (docs/cases.md): max-ent basis properties on regular, perturbed and
 // graded clouds, gamma in {0.8, 1.6, 4.0}, deep inside and within 1e-6 h of the
 // boundary; weak Kronecker-delta on hull edges; Sukumar's published 1-D values.
 #include <catch2/catch.hpp>

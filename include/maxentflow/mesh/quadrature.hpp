@@ -1,7 +1,7 @@
 // maxentflow: quadrature rules on the integration cells (triangles) and their
 // edges (segments). The paper integrates with "standard Gauss quadrature
 // methods within the triangles" (section "Numerical examples", preamble); the
-// edge rules serve the consistency correction of cases.md V1 and boundary terms.
+// edge rules serve the consistency correction of docs/cases.md V1 and boundary terms.
 #pragma once
 
 #include <array>
