@@ -29,6 +29,7 @@ int run(int steps, const char* solver, bool peer) {
   prm.geometry = Geometry::axisymmetric;
   prm.dt = 1.0;
   if (std::getenv("BENCH_LOG")) prm.solver.log = &std::cerr;
+
   Stepper<NortonHoff, Linear> sim(x, NortonHoff(150.0, 0.2, 1e-6 * V / H), prm);
   sim.add_tool(flat_plate("bottom plate", {0, 0}, {0, 1}, 1000));
   RigidTool top = flat_plate("top plate", {0, H}, {0, -1}, 1000);

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cstddef>
 #include <cmath>
 #include <functional>
 #include <memory>
@@ -81,6 +82,15 @@ class FlowSystem {
     return pattern_.generation();
   }
 
+  /// Changes when the unknowns change meaning: another number of nodes, or
+  /// other multiplier rows (part, node, direction), whatever their coefficients.
+  /// A factorization made for one configuration can precondition the next
+  /// with the same key (GmresSolver's kept LU).
+  std::size_t layout_key() {
+    update_structure();
+    return layout_key_;
+  }
+
   /// A at X (Picard or Newton) and the residual R(X) = A_picard(X) X - F.
   void assemble(const Eigen::VectorXd& X, Linearization kind, Matrix& A, Eigen::VectorXd& R) {
     update_structure();
@@ -132,6 +142,31 @@ class FlowSystem {
                                                                    : -1;
   }
 
+  /// Jv = J(X) v, J Newton's tangent (the matrix assemble() builds with
+  /// Linearization::newton), without forming it: a residual's cost.
+  void apply_tangent(const Eigen::VectorXd& X, const Eigen::VectorXd& v, Eigen::VectorXd& Jv) {
+    update_structure();
+    require(X.size() == pattern_.size() && v.size() == pattern_.size(),
+            detail::cat("X and v need ", pattern_.size(), " entries"), "FlowSystem::apply_tangent");
+    const int nv = 3 * number_of_nodes();
+    if (!(linearized_at_.size() == X.size() && linearized_at_ == X)) {  // a new X: new point operators
+      assembler_.linearize(X);
+      linearized_at_ = X;
+    }
+    Jv.setZero(pattern_.size());
+    assembler_.apply_tangent(v, Jv);
+    const auto& rows = constraints_.rows();
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      const double lambda = v[nv + static_cast<Eigen::Index>(i)];
+      double g = 0.0;
+      for (std::size_t k = 0; k < rows[i].dof.size(); ++k) {
+        Jv[rows[i].dof[k]] += rows[i].coef[k] * lambda;
+        g += rows[i].coef[k] * v[rows[i].dof[k]];
+      }
+      Jv[nv + static_cast<Eigen::Index>(i)] = g;
+    }
+  }
+
   void residual(const Eigen::VectorXd& X, Eigen::VectorXd& R) {
     update_structure();
     residual_impl(X, Linearization::picard, nullptr, R);
@@ -175,6 +210,14 @@ class FlowSystem {
     entry_pos_ = constraint_positions(pattern_.matrix());
     entry_coef_.clear();
     for (const auto& r : constraints_.rows()) entry_coef_.insert(entry_coef_.end(), r.coef.begin(), r.coef.end());
+    std::size_t k = static_cast<std::size_t>(number_of_nodes());
+    auto mix = [&k](long v) { k ^= static_cast<std::size_t>(v) + 0x9e3779b97f4a7c15ULL + (k << 6) + (k >> 2); };
+    for (const auto& r : constraints_.rows()) {
+      mix(r.part);
+      mix(r.node);
+      mix(std::abs(r.direction.x()) >= std::abs(r.direction.y()) ? 0 : 1);
+    }
+    layout_key_ = k;
   }
 
   void add_constraint_entries(Matrix& A, const std::vector<std::pair<int, int>>& pos) const {
@@ -249,6 +292,8 @@ class FlowSystem {
   };
   std::unique_ptr<LinearCompanion> linear_;  // heap: its assembler points at its disc
   bool structure_dirty_ = true;
+  std::size_t layout_key_ = 0;
+  Eigen::VectorXd linearized_at_;  // the X of the assembler's last linearize()
   long generation_of_A_ = -1, generation_of_P_ = -1;
   double force_scale_ = 1.0;
 };

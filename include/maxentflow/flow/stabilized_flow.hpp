@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cmath>
 #include <functional>
+#include <span>
 #include <vector>
 
 #include <Eigen/Core>
@@ -212,13 +213,114 @@ class StabilizedFlowAssembler {
                 Eigen::VectorXd& R, Eigen::VectorXd* fint = nullptr,
                 FlowPointState* state = nullptr) const;
 
+  /// Stores the point operators of Newton's tangent at X (a few numbers per
+  /// Gauss point) for apply_tangent.
+  void linearize(const Eigen::VectorXd& X);
+  /// Jv += J v: the Newton tangent of the cell integrals at the X of the last
+  /// linearize() (the matrix assemble() builds with Linearization::newton)
+  /// applied to v without forming it, at the cost of a residual evaluation.
+  /// Jv has size >= 3N.
+  void apply_tangent(const Eigen::VectorXd& v, Eigen::VectorXd& Jv) const;
+
  private:
   static constexpr double two_thirds = 2.0 / 3.0;
+  using PointOperator = Eigen::Matrix<double, 7, 7>;
+
+  // The constitutive state at one Gauss point from z = [strain rate rows
+  // (ns), p, grad p] (Eqs. 7-9, 14).
+  struct PointLaw {
+    double Qeps[4], m[4];
+    double d, mu, tau, div, pq;
+    double dmu_dd_over_d;
+    double sx, sy;  // grad p - f (f only with stabilize_body_force)
+  };
+  // z = O_q Y at point q of cell t (Y: 3 coefficients per node).
+  void point_rows(std::span<const int> u, const double* p, const double* dp, double r, bool axi, int ns,
+                  const Eigen::VectorXd& Y, double* z) const {
+    double ett = 0.0;
+    for (int k = 0; k < ns + 3; ++k) z[k] = 0.0;
+    for (std::size_t i = 0; i < u.size(); ++i) {
+      const int a = u[i];
+      const double vx = Y[3 * a], vy = Y[3 * a + 1], pa = Y[3 * a + 2];
+      const double gx = dp[2 * i], gy = dp[2 * i + 1];
+      z[0] += gx * vx;
+      z[1] += gy * vy;
+      ett += p[i] * vx;
+      z[ns - 1] += gy * vx + gx * vy;
+      z[ns] += p[i] * pa;
+      z[ns + 1] += gx * pa;
+      z[ns + 2] += gy * pa;
+    }
+    if (axi) z[2] = ett / r;  // hoop strain rate v_r / r
+  }
+  PointLaw point_law(const double* z, int ns, double rho, const Eigen::Vector2d& bs, int g) const {
+    PointLaw L;
+    double eQe = 0.0;
+    L.div = 0.0;
+    for (int k = 0; k < ns; ++k) {
+      L.Qeps[k] = k == ns - 1 ? 0.5 * z[k] : z[k];  // Q = diag(1, 1, (1), 1/2)
+      L.m[k] = k == ns - 1 ? 0.0 : 1.0;
+      eQe += z[k] * L.Qeps[k];
+      L.div += L.m[k] * z[k];
+    }
+    L.d = std::sqrt(std::max(0.0, two_thirds * eQe));
+    const Viscosity visc = material_.viscosity(L.d);
+    L.mu = visc.mu;
+    L.dmu_dd_over_d = visc.dmu_dd_over_d;
+    MAXENTFLOW_REQUIRE(std::isfinite(L.mu) && L.mu > 0,
+                       detail::cat("viscosity ", L.mu, " at d = ", L.d, " (NaN velocity?)"),
+                       detail::cat("StabilizedFlowAssembler, Gauss point ", g));
+    L.tau = prm_.Cs * rho * rho / L.mu;  // Eq. (14)
+    L.sx = z[ns + 1] - bs.x();
+    L.sy = z[ns + 2] - bs.y();
+    L.pq = z[ns];
+    return L;
+  }
+  // D_q: the linearized point operator (weight w included), Picard or Newton.
+  static void point_operator(const PointLaw& L, double w, bool newton, int ns, PointOperator& Dq) {
+    Dq.setZero();
+    for (int k = 0; k < ns; ++k) {
+      Dq(k, k) = w * 2.0 * L.mu * (k == ns - 1 ? 0.5 : 1.0);
+      Dq(k, ns) = -w * L.m[k];
+      Dq(ns, k) = -w * L.m[k];
+    }
+    Dq(ns + 1, ns + 1) = -w * L.tau;
+    Dq(ns + 2, ns + 2) = -w * L.tau;
+    if (newton && L.dmu_dd_over_d != 0.0) {
+      const double alpha = 2.0 * two_thirds * L.dmu_dd_over_d;  // (4/3) mu'/d
+      for (int k = 0; k < ns; ++k)
+        for (int l = 0; l < ns; ++l) Dq(k, l) += w * alpha * L.Qeps[k] * L.Qeps[l];
+      // d tau / d eps = -tau (mu'/d) / mu (2/3) Q eps
+      const double beta = -L.tau * L.dmu_dd_over_d / L.mu * two_thirds;
+      for (int l = 0; l < ns; ++l) {
+        Dq(ns + 1, l) = -w * L.sx * beta * L.Qeps[l];
+        Dq(ns + 2, l) = -w * L.sy * beta * L.Qeps[l];
+      }
+    }
+  }
+  // out += O_q^T y for the cell's nodes (3 per node).
+  static void add_transposed(const double* y, const double* p, const double* dp, int n, double r, bool axi,
+                             int ns, Eigen::VectorXd& out) {
+    const double yt = axi ? y[2] / r : 0.0;
+    for (int i = 0; i < n; ++i) {
+      const double gx = dp[2 * i], gy = dp[2 * i + 1];
+      out[3 * i] += gx * y[0] + p[i] * yt + gy * y[ns - 1];
+      out[3 * i + 1] += gy * y[1] + gx * y[ns - 1];
+      out[3 * i + 2] += p[i] * y[ns] + gx * y[ns + 1] + gy * y[ns + 2];
+    }
+  }
 
   const FlowDiscretization* disc_;
   Material material_;
   params prm_;
   BodyForce body_;
+  // Newton's point operator in compact form (see apply_tangent).
+  struct PointTangent {
+    double w, w2mu, wtau, walpha, wbsx, wbsy;
+    double Qeps[4];
+  };
+  std::vector<PointTangent> tangent_;
+  bool linearized_ = false;
 };
 
 template <ViscosityLaw Material>
@@ -265,8 +367,8 @@ void StabilizedFlowAssembler<Material>::assemble(const Eigen::VectorXd& X, Linea
     Eigen::MatrixXd Tq;
     Eigen::VectorXd rloc, floc;
     std::vector<int> kpos;
-    Eigen::Matrix<double, 7, 7> Dq;
-    double eps[4], Qeps[4], m[4], y[7];  // plain arrays: tiny, and no AVX-512 false positives in GCC 12
+    PointOperator Dq;
+    double y[7];  // plain arrays: tiny, and no AVX-512 false positives in GCC 12
     for (int t = 0; t < ncell; ++t) {
       const auto u = disc.nodes(t);
       if (u.back() < lo || u.front() >= hi) continue;
@@ -287,84 +389,31 @@ void StabilizedFlowAssembler<Material>::assemble(const Eigen::VectorXd& X, Linea
         const double w = disc.weight(g);
         const double r = disc.points()(0, g);
         // Current fields at the point: strain rate, pressure, grad p.
-        double z[7] = {0, 0, 0, 0, 0, 0, 0};
-        double ett = 0.0;
-        for (int i = 0; i < n; ++i) {
-          const int a = u[static_cast<std::size_t>(i)];
-          const double vx = X[3 * a], vy = X[3 * a + 1], pa = X[3 * a + 2];
-          const double gx = dp[2 * i], gy = dp[2 * i + 1];
-          z[0] += gx * vx;
-          z[1] += gy * vy;
-          ett += p[i] * vx;
-          z[ns - 1] += gy * vx + gx * vy;
-          z[ns] += p[i] * pa;
-          z[ns + 1] += gx * pa;
-          z[ns + 2] += gy * pa;
-        }
-        if (axi) z[2] = ett / r;  // hoop strain rate v_r / r
-        double eQe = 0.0, div = 0.0;
-        for (int k = 0; k < ns; ++k) {
-          eps[k] = z[k];
-          Qeps[k] = k == ns - 1 ? 0.5 * z[k] : z[k];  // Q = diag(1, 1, (1), 1/2)
-          m[k] = k == ns - 1 ? 0.0 : 1.0;
-          eQe += eps[k] * Qeps[k];
-          div += m[k] * eps[k];
-        }
-        const double d = std::sqrt(std::max(0.0, two_thirds * eQe));
-        const Viscosity visc = material_.viscosity(d);
-        const double mu = visc.mu;
-        MAXENTFLOW_REQUIRE(std::isfinite(mu) && mu > 0,
-                           detail::cat("viscosity ", mu, " at d = ", d, " (NaN velocity?)"),
-                           detail::cat("StabilizedFlowAssembler, Gauss point ", g));
-        const double rho = disc.rho(g);
-        const double tau = prm_.Cs * rho * rho / mu;  // Eq. (14)
+        double z[7];
+        point_rows(u, p, dp, r, axi, ns, X, z);
         const Eigen::Vector2d b = body_ ? body_(disc.points().col(g)) : Eigen::Vector2d::Zero();
         const Eigen::Vector2d bs = prm_.stabilize_body_force ? b : Eigen::Vector2d::Zero();
-        const Eigen::Vector2d s(z[ns + 1] - bs.x(), z[ns + 2] - bs.y());  // grad p - f
-        const double pq = z[ns];
+        const PointLaw L = point_law(z, ns, disc.rho(g), bs, g);
         if (state && u.front() >= lo) {  // one thread writes each point
-          state->d[g] = d;
-          state->mu[g] = mu;
-          state->tau[g] = tau;
-          state->p[g] = pq;
-          state->div[g] = div;
+          state->d[g] = L.d;
+          state->mu[g] = L.mu;
+          state->tau[g] = L.tau;
+          state->p[g] = L.pq;
+          state->div[g] = L.div;
         }
         // Residual: strain rows w (2 mu Q eps - p m); phi row -w div v;
         // grad rows -w tau (grad p - f)  (Eq. 13 with the sign of Eq. 21).
-        for (int k = 0; k < ns; ++k) y[k] = w * (2.0 * mu * Qeps[k] - pq * m[k]);
-        y[ns] = -w * div;
-        y[ns + 1] = -w * tau * s.x();
-        y[ns + 2] = -w * tau * s.y();
-        const double yt = axi ? y[2] / r : 0.0;
-        for (int i = 0; i < n; ++i) {  // O_q^T y and the body force
-          const double gx = dp[2 * i], gy = dp[2 * i + 1];
-          rloc[3 * i] += gx * y[0] + p[i] * yt + gy * y[ns - 1];
-          rloc[3 * i + 1] += gy * y[1] + gx * y[ns - 1];
-          rloc[3 * i + 2] += p[i] * y[ns] + gx * y[ns + 1] + gy * y[ns + 2];
+        for (int k = 0; k < ns; ++k) y[k] = w * (2.0 * L.mu * L.Qeps[k] - L.pq * L.m[k]);
+        y[ns] = -w * L.div;
+        y[ns + 1] = -w * L.tau * L.sx;
+        y[ns + 2] = -w * L.tau * L.sy;
+        add_transposed(y, p, dp, n, r, axi, ns, rloc);
+        for (int i = 0; i < n; ++i) {  // the body force
           floc[3 * i] -= w * p[i] * b.x();
           floc[3 * i + 1] -= w * p[i] * b.y();
         }
         if (!A) continue;
-        // D_q: the linearized point operator.
-        Dq.setZero();
-        for (int k = 0; k < ns; ++k) {
-          Dq(k, k) = w * 2.0 * mu * (k == ns - 1 ? 0.5 : 1.0);
-          Dq(k, ns) = -w * m[k];
-          Dq(ns, k) = -w * m[k];
-        }
-        Dq(ns + 1, ns + 1) = -w * tau;
-        Dq(ns + 2, ns + 2) = -w * tau;
-        if (newton && visc.dmu_dd_over_d != 0.0) {
-          const double alpha = 2.0 * two_thirds * visc.dmu_dd_over_d;  // (4/3) mu'/d
-          for (int k = 0; k < ns; ++k)
-            for (int l = 0; l < ns; ++l) Dq(k, l) += w * alpha * Qeps[k] * Qeps[l];
-          // d tau / d eps = -tau (mu'/d) / mu (2/3) Q eps
-          const double beta = -tau * visc.dmu_dd_over_d / mu * two_thirds;
-          for (int l = 0; l < ns; ++l) {
-            Dq(ns + 1, l) = -w * s.x() * beta * Qeps[l];
-            Dq(ns + 2, l) = -w * s.y() * beta * Qeps[l];
-          }
-        }
+        point_operator(L, w, newton, ns, Dq);
         // T_q = D_q O_q column by column (O_q's columns have 2-3 nonzeros), and
         // the rows of O_q per component.
         const auto D = Dq.topLeftCorner(nr, nr);
@@ -425,6 +474,94 @@ void StabilizedFlowAssembler<Material>::assemble(const Eigen::VectorXd& X, Linea
             blk[2] += a2[i];
           }
         }
+      }
+    }
+  }
+}
+
+template <ViscosityLaw Material>
+void StabilizedFlowAssembler<Material>::linearize(const Eigen::VectorXd& X) {
+  const FlowDiscretization& disc = *disc_;
+  const int N = disc.number_of_nodes();
+  const bool axi = disc.axisymmetric();
+  const int ns = axi ? 4 : 3;
+  const int nq = disc.points_per_cell();
+  require(X.size() >= 3 * N, "X needs 3 entries per node", "StabilizedFlowAssembler::linearize");
+  tangent_.resize(static_cast<std::size_t>(disc.cells()) * nq);
+#pragma omp parallel for schedule(static) num_threads(std::max(1, std::min(max_threads(), N / 64 + 1)))
+  for (int t = 0; t < disc.cells(); ++t) {
+    const auto u = disc.nodes(t);
+    double z[7];
+    for (int q = 0; q < nq; ++q) {
+      const int g = t * nq + q;
+      point_rows(u, disc.values(t, q), disc.gradients(t, q), disc.points()(0, g), axi, ns, X, z);
+      const Eigen::Vector2d bs = prm_.stabilize_body_force && body_ ? body_(disc.points().col(g))
+                                                                    : Eigen::Vector2d::Zero();
+      const PointLaw L = point_law(z, ns, disc.rho(g), bs, g);
+      const double w = disc.weight(g);
+      PointTangent& T = tangent_[static_cast<std::size_t>(g)];
+      T.w = w;
+      T.w2mu = w * 2.0 * L.mu;
+      T.wtau = w * L.tau;
+      const double alpha = 2.0 * two_thirds * L.dmu_dd_over_d;  // (4/3) mu'/d
+      const double beta = -L.tau * L.dmu_dd_over_d / L.mu * two_thirds;  // d tau / d eps = beta Q eps
+      T.walpha = w * alpha;
+      T.wbsx = -w * L.sx * beta;
+      T.wbsy = -w * L.sy * beta;
+      for (int k = 0; k < 4; ++k) T.Qeps[k] = k < ns ? L.Qeps[k] : 0.0;
+    }
+  }
+  linearized_ = true;
+}
+
+template <ViscosityLaw Material>
+void StabilizedFlowAssembler<Material>::apply_tangent(const Eigen::VectorXd& v, Eigen::VectorXd& Jv) const {
+  const FlowDiscretization& disc = *disc_;
+  const int N = disc.number_of_nodes();
+  const bool axi = disc.axisymmetric();
+  const int ns = axi ? 4 : 3;
+  const int nq = disc.points_per_cell();
+  require(linearized_ && tangent_.size() == static_cast<std::size_t>(disc.cells()) * nq,
+          "linearize(X) first", "StabilizedFlowAssembler::apply_tangent");
+  require(v.size() >= 3 * N && Jv.size() >= 3 * N, "v and Jv need 3 entries per node",
+          "StabilizedFlowAssembler::apply_tangent");
+  const int threads = std::max(1, std::min(max_threads(), N / 64 + 1));
+#pragma omp parallel num_threads(threads)
+  {
+    const int tid = thread_id(), nth = team_size();
+    const int lo = static_cast<int>(static_cast<long>(N) * tid / nth);
+    const int hi = static_cast<int>(static_cast<long>(N) * (tid + 1) / nth);
+    Eigen::VectorXd jloc;
+    double zv[7], y[7];
+    for (int t = 0; t < disc.cells(); ++t) {
+      const auto u = disc.nodes(t);
+      if (u.back() < lo || u.front() >= hi) continue;
+      const int n = static_cast<int>(u.size());
+      jloc.setZero(3 * n);
+      for (int q = 0; q < nq; ++q) {
+        const int g = t * nq + q;
+        const double* p = disc.values(t, q);
+        const double* dp = disc.gradients(t, q);
+        const double r = disc.points()(0, g);
+        point_rows(u, p, dp, r, axi, ns, v, zv);
+        // y = D_q zv, D_q as point_operator builds it for Newton.
+        const PointTangent& T = tangent_[static_cast<std::size_t>(g)];
+        double qz = 0.0, div = 0.0;
+        for (int k = 0; k < ns; ++k) qz += T.Qeps[k] * zv[k];
+        for (int k = 0; k + 1 < ns; ++k) div += zv[k];
+        for (int k = 0; k < ns; ++k) {
+          const bool shear = k == ns - 1;
+          y[k] = T.w2mu * (shear ? 0.5 : 1.0) * zv[k] - (shear ? 0.0 : T.w * zv[ns]) + T.walpha * T.Qeps[k] * qz;
+        }
+        y[ns] = -T.w * div;
+        y[ns + 1] = -T.wtau * zv[ns + 1] + T.wbsx * qz;
+        y[ns + 2] = -T.wtau * zv[ns + 2] + T.wbsy * qz;
+        add_transposed(y, p, dp, n, r, axi, ns, jloc);
+      }
+      for (int j = 0; j < n; ++j) {
+        const int b = u[static_cast<std::size_t>(j)];
+        if (b < lo || b >= hi) continue;
+        for (int c = 0; c < 3; ++c) Jv[3 * b + c] += jloc[3 * j + c];
       }
     }
   }

@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cmath>
 #include <concepts>
+#include <cstddef>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -26,6 +28,21 @@ concept PreconditionedLinearSolver =
       s.factorize_preconditioner(A);
       { s.solve(A, b) } -> std::convertible_to<Eigen::VectorXd>;
       { s.last_iterations() } -> std::convertible_to<int>;
+    };
+
+/// A Krylov policy that can also keep a direct LU of a full system matrix
+/// and precondition solves by it, with the matrix-vector product given as an
+/// operator (so that Newton's tangent need not be assembled).
+template <class S>
+concept KeptLuLinearSolver =
+    PreconditionedLinearSolver<S> &&
+    requires(S& s, const Eigen::SparseMatrix<double, Eigen::ColMajor, int>& A, const Eigen::VectorXd& b,
+             std::size_t key, Eigen::VectorXd (*op)(const Eigen::VectorXd&)) {
+      s.set_layout(key);
+      { s.kept_usable(b.size()) } -> std::convertible_to<bool>;
+      s.factorize_kept(A);
+      { s.solve_kept(op, b, 1) } -> std::convertible_to<Eigen::VectorXd>;
+      { s.converged() } -> std::convertible_to<bool>;
     };
 
 struct GmresParams {
@@ -75,28 +92,107 @@ class GmresSolver {
   Eigen::VectorXd solve(const Matrix& A, const Eigen::VectorXd& b, bool allow_fallback = true) {
     const char* where = "GmresSolver::solve";
     require(A.rows() == b.size() && A.cols() == b.size(), "A and b sizes differ", where);
-    const Eigen::Index n = b.size();
-    Eigen::VectorXd x = Eigen::VectorXd::Zero(n);
     last_iterations_ = 0;
     last_residual_ = 0.0;
-    const double bnorm = b.norm();
-    if (bnorm == 0.0) return x;
+    if (b.norm() == 0.0) return Eigen::VectorXd::Zero(b.size());
     if (!usable_ && !frozen_) return direct(A, b);
     // After a fallback this structure's solves use the LU of that earlier A:
     // Newton's next matrices differ little from it, so GMRES needs a few
     // iterations where the linear-triangle preconditioner needed hundreds.
-    const Preconditioner& M = frozen_ ? direct_ : M_;
+    const Preconditioner& M = frozen_ ? kept_ : M_;
     Ar_ = A;  // row-major: the product is parallel (OpenMP) in Eigen
+    const int max_iterations = allow_fallback ? prm_.max_iterations : std::min(prm_.max_iterations, prm_.restart);
+    Eigen::VectorXd x = gmres([&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return Ar_ * v; }, M, b,
+                              max_iterations);
+    if (last_residual_ <= prm_.tol || !allow_fallback) return x;
+    require(prm_.direct_fallback,
+            detail::cat("GMRES did not converge in ", last_iterations_, " iterations (relative residual ",
+                        last_residual_, ")"),
+            where);
+    return direct(A, b);
+  }
+
+  // The kept LU: a direct factorization of a full system matrix (Newton's
+  // tangent, or A after a fallback), kept across iterations, steps and
+  // structures while the unknowns keep their layout (set_layout: the same
+  // nodes and multiplier rows), as the preconditioner of solves whose
+  // matrices have moved on a little.
+
+  /// The layout of the next solves' unknowns (a key that changes when
+  /// their meaning does); a kept LU of another layout is not used.
+  void set_layout(std::size_t key) { layout_ = key; }
+  /// A kept LU exists for this layout and size.
+  bool kept_usable(Eigen::Index n) const { return kept_ok_ && kept_layout_ == layout_ && kept_n_ == n; }
+  /// LU of A, kept for the current layout.
+  void factorize_kept(const Matrix& A) {
+    kept_ok_ = false;
+    kept_.analyze(A);
+    kept_.factorize(A);
+    kept_ok_ = true;
+    kept_layout_ = layout_;
+    kept_n_ = A.rows();
+    ++kept_factorizations_;
+  }
+  /// GMRES on op(x) = b (op: the matrix-vector product, e.g. matrix-free)
+  /// preconditioned by the kept LU, at most max_iterations, no fallback: the
+  /// last iterate, with converged() saying whether it reached the tolerance.
+  template <class Op>
+  Eigen::VectorXd solve_kept(Op&& op, const Eigen::VectorXd& b, int max_iterations) {
+    require(kept_usable(b.size()), "no kept LU for this layout", "GmresSolver::solve_kept");
+    last_iterations_ = 0;
+    last_residual_ = 0.0;
+    if (b.norm() == 0.0) return Eigen::VectorXd::Zero(b.size());
+    return gmres(std::forward<Op>(op), kept_, b, max_iterations);
+  }
+  /// LU factorizations made for the kept preconditioner (direct fallbacks included).
+  int kept_factorizations() const { return kept_factorizations_; }
+
+  int last_iterations() const { return last_iterations_; }
+  /// The last solve reached the tolerance (after a direct fallback: its own residual did).
+  bool converged() const { return last_residual_ <= prm_.tol; }
+  /// False after the preconditioner failed to factorize (solves go direct).
+  bool preconditioner_usable() const { return usable_; }
+  double last_residual() const { return last_residual_; }
+  /// Solves done by a direct LU of A instead (GMRES did not converge in
+  /// max_iterations, or P could not be factorized); that LU then
+  /// preconditions the rest of the structure's solves.
+  int direct_fallbacks() const { return direct_fallbacks_; }
+  static constexpr const char* name() { return "GMRES + linear-triangle LU"; }
+
+ private:
+  // GMRES corrects what the preconditioner leaves; refining its solves (LU
+  // solvers that can) would only repeat products with P.
+  void no_refinement() {
+    if constexpr (requires(Preconditioner& p) { p.set_refinement_steps(0); }) {
+      M_.set_refinement_steps(0);
+      kept_.set_refinement_steps(0);
+    }
+  }
+  template <class F>
+  bool guard(F&& f) {
+    try {
+      f();
+      return true;
+    } catch (const Error&) {
+      if (!prm_.direct_fallback) throw;
+      return false;
+    }
+  }
+  // Restarted GMRES from x = 0, right-preconditioned: op(M^-1 u) = b, x = M^-1 u.
+  template <class Op>
+  Eigen::VectorXd gmres(Op&& op, const Preconditioner& M, const Eigen::VectorXd& b, int max_iterations) {
+    const Eigen::Index n = b.size();
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(n);
     const int m = std::max(1, prm_.restart);
     V_.resize(n, m + 1);
     H_.setZero(m + 1, m);
     cs_.resize(m);
     sn_.resize(m);
     g_.resize(m + 1);
+    const double bnorm = b.norm();
     Eigen::VectorXd r = b, w;
     double rnorm = bnorm;
     const double target = prm_.tol * bnorm;
-    const int max_iterations = allow_fallback ? prm_.max_iterations : std::min(prm_.max_iterations, m);
     while (last_iterations_ < max_iterations) {
       V_.col(0) = r / rnorm;
       g_.setZero();
@@ -104,7 +200,7 @@ class GmresSolver {
       int j = 0;
       for (; j < m && last_iterations_ < max_iterations; ++j) {
         ++last_iterations_;
-        w.noalias() = Ar_ * M.solve(V_.col(j));
+        w = op(M.solve(V_.col(j)));
         // Classical Gram-Schmidt, repeated once ("twice is enough") for the
         // orthogonality a tight tolerance needs; as matrix-vector products,
         // which stay cheap next to A's product up to the restart length.
@@ -136,67 +232,33 @@ class GmresSolver {
       const Eigen::VectorXd y =
           H_.topLeftCorner(j, j).template triangularView<Eigen::Upper>().solve(g_.head(j));
       x += M.solve(V_.leftCols(j) * y);
-      r = b - Ar_ * x;
+      r = b - op(x);
       rnorm = r.norm();
       H_.setZero();
       if (rnorm <= target) break;
     }
     last_residual_ = rnorm / bnorm;
-    MAXENTFLOW_REQUIRE(x.allFinite(), "GMRES produced NaN/Inf (singular preconditioner?)", where);
-    if (last_residual_ <= prm_.tol || !allow_fallback) return x;
-    require(prm_.direct_fallback,
-            detail::cat("GMRES did not converge in ", last_iterations_, " iterations (relative residual ",
-                        last_residual_, ")"),
-            where);
-    return direct(A, b);
-  }
-
-  int last_iterations() const { return last_iterations_; }
-  /// The last solve reached the tolerance (after a direct fallback: its own residual did).
-  bool converged() const { return last_residual_ <= prm_.tol; }
-  /// False after the preconditioner failed to factorize (solves go direct).
-  bool preconditioner_usable() const { return usable_; }
-  double last_residual() const { return last_residual_; }
-  /// Solves done by a direct LU of A instead (GMRES did not converge in
-  /// max_iterations, or P could not be factorized); that LU then
-  /// preconditions the rest of the structure's solves.
-  int direct_fallbacks() const { return direct_fallbacks_; }
-  static constexpr const char* name() { return "GMRES + linear-triangle LU"; }
-
- private:
-  // GMRES corrects what the preconditioner leaves; refining its solves (LU
-  // solvers that can) would only repeat products with P.
-  void no_refinement() {
-    if constexpr (requires(Preconditioner& p) { p.set_refinement_steps(0); }) {
-      M_.set_refinement_steps(0);
-      direct_.set_refinement_steps(0);
-    }
-  }
-  template <class F>
-  bool guard(F&& f) {
-    try {
-      f();
-      return true;
-    } catch (const Error&) {
-      if (!prm_.direct_fallback) throw;
-      return false;
-    }
+    MAXENTFLOW_REQUIRE(x.allFinite(), "GMRES produced NaN/Inf (singular preconditioner?)", "GmresSolver");
+    return x;
   }
   Eigen::VectorXd direct(const Matrix& A, const Eigen::VectorXd& b) {
     require(prm_.direct_fallback, "no usable preconditioner and no direct fallback", "GmresSolver::solve");
     ++direct_fallbacks_;
-    direct_.analyze(A);
-    direct_.factorize(A);
+    factorize_kept(A);
     frozen_ = true;
-    Eigen::VectorXd x = direct_.solve(b);
-    x += direct_.solve(b - A * x);  // one refinement step (the LU's own are off)
+    Eigen::VectorXd x = kept_.solve(b);
+    x += kept_.solve(b - A * x);  // one refinement step (the LU's own are off)
     last_residual_ = (b - A * x).norm() / b.norm();
     return x;
   }
 
   params prm_;
   bool analyzed_ = false, usable_ = false, frozen_ = false;
-  Preconditioner M_, direct_;
+  Preconditioner M_, kept_;
+  bool kept_ok_ = false;
+  std::size_t layout_ = 0, kept_layout_ = 0;
+  Eigen::Index kept_n_ = -1;
+  int kept_factorizations_ = 0;
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> Ar_;
   Eigen::MatrixXd V_, H_;
   Eigen::VectorXd cs_, sn_, g_, h_;
@@ -205,5 +267,6 @@ class GmresSolver {
 };
 
 static_assert(PreconditionedLinearSolver<GmresSolver<>>);
+static_assert(KeptLuLinearSolver<GmresSolver<>>);
 
 }  // namespace maxentflow

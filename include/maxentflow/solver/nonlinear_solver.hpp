@@ -6,6 +6,7 @@
 #include <chrono>
 #include <limits>
 #include <cmath>
+#include <cstddef>
 #include <cstdio>
 #include <iosfwd>
 #include <ostream>
@@ -43,6 +44,14 @@ concept PreconditionedSystem =
       s.assemble_preconditioner(x, P);
       { s.preconditioner_generation() } -> std::convertible_to<long>;
     };
+
+/// A system whose unknowns' layout has a key (FlowSystem::layout_key), so
+/// that a factorization can be kept while the key stays.
+template <class S>
+concept LayoutKeyedSystem = NonlinearSystem<S> && requires(S& s, const Eigen::VectorXd& x, Eigen::VectorXd& y) {
+  { s.layout_key() } -> std::convertible_to<std::size_t>;
+  s.apply_tangent(x, x, y);  // y = J(x) x: Newton's tangent applied matrix-free
+};
 
 /// Either kind of linear-solver policy: direct (LinearSolver) or Krylov
 /// with a preconditioner the system assembles (PreconditionedLinearSolver).
@@ -122,6 +131,23 @@ struct NonlinearSolverParams {
   /// once a solve needs more than this times the Krylov iterations per decade
   /// of residual reduction of the first solve with it; <= 0: every iteration.
   double preconditioner_refresh = 1.1;
+  /// Policies that keep an LU (KeptLuLinearSolver) on systems with a layout
+  /// key: Newton iterations solve with GMRES preconditioned by an LU of
+  /// Newton's tangent kept across iterations and solves (steps) of the same
+  /// layout, with the tangent applied matrix-free (apply_tangent, which costs
+  /// a few per cent of an assembly), so that a warm-started Newton iteration
+  /// assembles no matrix. The LU is made again
+  /// (tangent assembled at the current iterate) when GMRES needs more than
+  /// kept_lu_iterations, the layout changes, or preconditioner_refresh <= 0.
+  /// Systems with more unknowns than kept_lu_max_unknowns use the
+  /// linear-triangle preconditioner instead (the LU's memory).
+  bool kept_lu = true;
+  int kept_lu_iterations = 8;
+  /// The forcing-term cap of those solves: a GMRES iteration with the kept LU
+  /// costs a small part of a Newton iteration, so a tighter linear solve that
+  /// saves a Newton iteration pays (E1: 2 instead of 3 per step).
+  double eta_kept_lu = 1e-4;
+  int kept_lu_max_unknowns = 20000;
   std::ostream* log = nullptr;     ///< per-iteration log
 };
 
@@ -166,8 +192,13 @@ class NonlinearSolver {
     Eigen::VectorXd R, Rtry, Xtry, dx;
     for (int it = 0; it < prm_.max_iterations; ++it) {
       const Linearization kind = phase;
+      const bool kept = kind == Linearization::newton && use_kept_lu(sys, n);
       auto t0 = clock::now();
-      sys.assemble(X, kind, A_, R);
+      bool assembled = !(kept && kept_lu_current(n));
+      if (assembled)
+        sys.assemble(X, kind, A_, R);
+      else
+        sys.residual(X, R);
       rep.assembly_seconds += seconds(t0);
       const double res = sys.relative_residual(R);
       rep.residual = res;
@@ -177,7 +208,10 @@ class NonlinearSolver {
         break;
       }
       int linear_its = 0;
-      if constexpr (PreconditionedLinearSolver<Linear>) {
+      if (kept) {
+        if constexpr (KeptLuLinearSolver<Linear> && LayoutKeyedSystem<System>)
+          dx = kept_lu_newton(sys, X, R, res, assembled, rep, linear_its);
+      } else if constexpr (PreconditionedLinearSolver<Linear>) {
         static_assert(PreconditionedSystem<System>,
                       "a Krylov policy needs a system with assemble_preconditioner()");
         auto refresh = [&] {
@@ -302,9 +336,81 @@ class NonlinearSolver {
   }
 
  private:
+  // Newton with the kept LU applies (KeptLuLinearSolver, LayoutKeyedSystem, size).
+  template <class System>
+  bool use_kept_lu(System& sys, int n) {
+    if constexpr (KeptLuLinearSolver<Linear> && LayoutKeyedSystem<System>) {
+      if (!prm_.kept_lu || n > prm_.kept_lu_max_unknowns) return false;
+      linear_.set_layout(sys.layout_key());
+      return true;
+    } else {
+      return false;
+    }
+  }
+  // The kept LU can serve this iteration without a new factorization.
+  bool kept_lu_current(int n) const {
+    if constexpr (KeptLuLinearSolver<Linear>)
+      return prm_.preconditioner_refresh > 0 && linear_.kept_usable(n);
+    else
+      return false;
+  }
+
+  // One Newton direction: GMRES on J dx = -R with J v matrix-free,
+  // preconditioned by the kept LU (made from the assembled
+  // tangent at X when there is none for this layout, or when it no longer
+  // brings GMRES below the tolerance in kept_lu_iterations).
+  template <class System>
+  Eigen::VectorXd kept_lu_newton(System& sys, const Eigen::VectorXd& X, const Eigen::VectorXd& R,
+                                 double res, bool assembled, SolveReport& rep, int& linear_its) {
+    using clock = std::chrono::steady_clock;
+    auto seconds = [](clock::time_point a) {
+      return std::chrono::duration<double>(clock::now() - a).count();
+    };
+    const int n = sys.size();
+    auto refactor = [&] {
+      auto t0 = clock::now();
+      if (!assembled) {
+        Eigen::VectorXd R2;
+        sys.assemble(X, Linearization::newton, A_, R2);
+        assembled = true;
+      }
+      rep.assembly_seconds += seconds(t0);
+      t0 = clock::now();
+      linear_.factorize_kept(A_);
+      rep.factorization_seconds += seconds(t0);
+      ++rep.preconditioner_updates;
+    };
+    bool fresh = false;
+    if (!kept_lu_current(n)) {
+      refactor();
+      fresh = true;
+    }
+    const double eta = std::max(res, 0.5 * prm_.residual_tol / std::max(res, 1e-300));
+    linear_.set_tolerance(std::clamp(eta, prm_.eta_min, std::min(prm_.eta_max, prm_.eta_kept_lu)));
+    auto tangent = [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+      sys.apply_tangent(X, v, Jv_);
+      return Jv_;
+    };
+    auto t0 = clock::now();
+    Eigen::VectorXd dx = linear_.solve_kept(tangent, -R, prm_.kept_lu_iterations);
+    linear_its = linear_.last_iterations();
+    if (!linear_.converged() && !fresh) {
+      rep.solve_seconds += seconds(t0);
+      refactor();
+      t0 = clock::now();
+      dx = linear_.solve_kept(tangent, -R, prm_.kept_lu_iterations);
+      linear_its += linear_.last_iterations();
+    }
+    rep.solve_seconds += seconds(t0);
+    rep.linear_iterations += linear_its;
+    rep.max_linear_iterations = std::max(rep.max_linear_iterations, linear_its);
+    return dx;
+  }
+
   params prm_;
   Linear linear_;
   Matrix A_, P_;
+  Eigen::VectorXd Jv_;
   long analyzed_generation_ = -1;
   int analyzed_size_ = -1;
   int picard_since_switch_ = 0;

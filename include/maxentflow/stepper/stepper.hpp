@@ -38,8 +38,11 @@ namespace maxentflow {
 /// - spatial: this step's field at the node's new position,
 ///   V_a + f(x_a + dt v_a) - f(x_a), right for a flow that is steady where the
 ///   tools are (extrusion, cutting): a node entering the die picks up the
-///   die's velocity instead of keeping the container's.
-enum class Predictor { material, spatial };
+///   die's velocity instead of keeping the container's;
+/// - extrapolated: material, extrapolated linearly in time from the last two
+///   steps, V + (dt / dt_last)(V - V_last): right when a material point's
+///   velocity changes steadily (upsetting: the exact start to O(dt^2)).
+enum class Predictor { material, spatial, extrapolated };
 
 struct StepperParams {
   Geometry geometry = Geometry::plane_strain;
@@ -72,7 +75,7 @@ struct StepperParams {
   /// Node rezoning at the start of each step after the first (off by default;
   /// see node_adaptivity.hpp). h0 is the first configuration's h_a.
   NodeAdaptivityParams adapt;
-  Predictor predictor = Predictor::material;
+  Predictor predictor = Predictor::extrapolated;
 };
 
 /// What one step did (also one line of the progress log).
@@ -236,19 +239,21 @@ class Stepper {
  private:
   struct State {
     Eigen::Matrix2Xd x;
-    Eigen::VectorXd V, strain;
+    Eigen::VectorXd V, V_last, strain;
     Eigen::Matrix2Xd v_nodal;
     std::vector<Eigen::Vector2d> tool_disp;
-    double time;
+    double time, dt_last;
   };
   State save() const {
-    State s{x_, V_, strain_, v_nodal_, {}, time_};
+    State s{x_, V_, V_last_, strain_, v_nodal_, {}, time_, dt_last_};
     for (const auto& t : tools_) s.tool_disp.push_back(t.displacement());
     return s;
   }
   void restore(const State& s) {
     x_ = s.x;
     V_ = s.V;
+    V_last_ = s.V_last;
+    dt_last_ = s.dt_last;
     strain_ = s.strain;
     v_nodal_ = s.v_nodal;
     time_ = s.time;
@@ -296,8 +301,10 @@ class Stepper {
     }
     // Start from the previous step's velocity and pressure coefficients.
     const int N = static_cast<int>(x_.cols());
-    NonlinearSolverParams sp = prm_.solver;
-    NonlinearSolver<Linear> solver(sp);
+    // One solver for the whole run: its linear policy keeps factorizations
+    // that precondition the next steps' solves while the layout stays.
+    if (!solver_) solver_ = std::make_unique<NonlinearSolver<Linear>>(prm_.solver);
+    solver_->parameters() = prm_.solver;
     Eigen::VectorXd X;
     Eigen::Matrix2Xd v(2, N);
     int as = 0;
@@ -307,7 +314,7 @@ class Stepper {
         contacts_[k].add_rows(sys.constraints(), part[k], *mesh, *disc, *basis, tools_[k], dt);
       }
       // A re-solve after an active-set change starts from the last solve.
-      const Eigen::VectorXd start = as == 0 ? V_ : Eigen::VectorXd(X.head(3 * N));
+      const Eigen::VectorXd start = as == 0 ? predicted(dt) : Eigen::VectorXd(X.head(3 * N));
       X = Eigen::VectorXd::Zero(sys.size());
       X.head(3 * N) = start;
       const auto& rows = sys.constraints().rows();
@@ -315,7 +322,7 @@ class Stepper {
         const auto it = lambda_guess_.find(multiplier_key(rows[i]));
         if (it != lambda_guess_.end()) X[3 * N + static_cast<Eigen::Index>(i)] = it->second;
       }
-      const SolveReport rep = solver.solve(sys, X);
+      const SolveReport rep = solver_->solve(sys, X);
       lambda_guess_.clear();
       for (std::size_t i = 0; i < rows.size(); ++i)
         lambda_guess_[multiplier_key(rows[i])] = X[3 * N + static_cast<Eigen::Index>(i)];
@@ -365,6 +372,8 @@ class Stepper {
           }
     }
     X_ = X;
+    V_last_ = V_;
+    dt_last_ = dt;
     V_ = X.head(3 * N);
     v_nodal_ = v;
     mesh_ = mesh;
@@ -413,6 +422,12 @@ class Stepper {
                            "Stepper::advance");
       }
     rec.post_seconds += since(t);
+  }
+
+  // Where the solve of a step of dt starts (see Predictor).
+  Eigen::VectorXd predicted(double dt) const {
+    if (prm_.predictor != Predictor::extrapolated || V_last_.size() != V_.size() || !(dt_last_ > 0)) return V_;
+    return V_ + (dt / dt_last_) * (V_ - V_last_);
   }
 
   // v(x_a) = sum_b p_b(x_a) V_b: max-ent is not interpolating inside, so the
@@ -512,6 +527,7 @@ class Stepper {
     const std::vector<int> map = a.old_to_new(x_.cols());
     x_ = a.positions(x_);
     V_ = a.transfer_interleaved(V_, 3);
+    if (V_last_.size() == 3 * static_cast<Eigen::Index>(map.size())) V_last_ = a.transfer_interleaved(V_last_, 3);
     v_nodal_ = a.transfer(v_nodal_);
     strain_ = a.transfer(strain_.transpose()).transpose();
     p_nodal_ = a.transfer(p_nodal_.transpose()).transpose();
@@ -533,6 +549,8 @@ class Stepper {
   Material material_;
   Eigen::Matrix2Xd x_, x_solved_;
   Eigen::VectorXd V_, X_;
+  Eigen::VectorXd V_last_;  // the solve before V_'s, for Predictor::extrapolated
+  double dt_last_ = 0.0;    // its step
   // The last multipliers by (part, node, main axis of the direction): the
   // start of the next solve, so a warm-started Newton sees only the change.
   static std::tuple<int, int, int> multiplier_key(const ConstraintRow& r) {
@@ -554,6 +572,7 @@ class Stepper {
   std::vector<StepRecord> history_;
   std::shared_ptr<Mesh> mesh_;
   std::shared_ptr<Basis> basis_;
+  std::unique_ptr<NonlinearSolver<Linear>> solver_;  // heap: LU factorizations do not move
   std::ostream* log_ = nullptr;
   double time_ = 0.0;
   int step_ = 0;
