@@ -18,9 +18,9 @@ namespace {
 
 // Plane-strain compression of a block with a body force and a traction, so that
 // the flow is not homogeneous and Newton has work to do.
-FlowProblem<NortonHoff> compression(double n, bool perturbed = true) {
+FlowProblem<NortonHoff> compression(double n, bool perturbed = true, int nx = 13) {
   const double W = 4, H = 3, V = 0.1;
-  FlowProblem<NortonHoff> P(block_nodes(13, 10, W, H, perturbed), Geometry::plane_strain,
+  FlowProblem<NortonHoff> P(block_nodes(nx, 10, W, H, perturbed), Geometry::plane_strain,
                             NortonHoff(150.0, n, 1e-5));
   const double tol = 1e-9;
   P.velocity(on_line({0, 0}, {1, 0}, tol), {1, 0}, 0.0, "symmetry");
@@ -58,6 +58,10 @@ TEST_CASE("the Newton tangent is the derivative of the residual", "[flow][solver
     const Eigen::VectorXd fd = (Rp - Rm) / (2 * eps);
     const Eigen::VectorXd an = A * dX;
     CHECK((fd - an).norm() <= 1e-6 * an.norm());
+    // The matrix-free product is that matrix's, to round-off.
+    Eigen::VectorXd Jv;
+    P.system->apply_tangent(X, dX, Jv);
+    CHECK((Jv - an).norm() <= 1e-12 * an.norm());
     // The Picard matrix is not the tangent when n != 1.
     P.system->assemble(X, Linearization::picard, A, R);
     const double picard_gap = (fd - A * dX).norm() / an.norm();
@@ -90,6 +94,79 @@ TEST_CASE("Newton converges quadratically near the solution", "[flow][solver]") 
     ++checked;
   }
   CHECK(checked >= 1);
+}
+
+TEST_CASE("matrix-free tangent, axisymmetric: the assembled Newton matrix's product", "[flow][solver]") {
+  const double W = 2, H = 3;
+  FlowProblem<NortonHoff> P(block_nodes(9, 12, W, H, true), Geometry::axisymmetric, NortonHoff(150.0, 0.2, 1e-5));
+  P.velocity(on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0, "axis");
+  P.velocity(on_line({0, 0}, {0, 1}, 1e-9), {0, 1}, 0.0, "bottom");
+  P.velocity(on_line({0, 0}, {0, 1}, 1e-9), {1, 0}, 0.0, "bottom sticking");
+  P.velocity(on_line({0, H}, {0, 1}, 1e-9), {0, 1}, -0.1, "top");
+  const int n = P.system->size();
+  std::mt19937 rng(5);
+  std::normal_distribution<double> g;
+  Eigen::VectorXd X(n), v(n), Jv;
+  for (int k = 0; k < n; ++k) X[k] = g(rng), v[k] = g(rng);
+  SystemPattern::Matrix A;
+  Eigen::VectorXd R;
+  P.system->assemble(X, Linearization::newton, A, R);
+  P.system->apply_tangent(X, v, Jv);
+  CHECK((Jv - A * v).norm() <= 1e-12 * (A * v).norm());
+  // A new X gets new point operators.
+  X *= 0.5;
+  P.system->assemble(X, Linearization::newton, A, R);
+  P.system->apply_tangent(X, v, Jv);
+  CHECK((Jv - A * v).norm() <= 1e-12 * (A * v).norm());
+}
+
+TEST_CASE("Newton with the kept LU: the direct solution; the LU kept for one layout, made again for another",
+          "[flow][solver][gmres]") {
+  Eigen::VectorXd X_direct, X_kept;
+  auto P0 = compression(0.2);
+  NonlinearSolver<> direct;
+  REQUIRE(direct.solve(*P0.system, X_direct).converged);
+
+  NonlinearSolver<GmresSolver<>> s;  // kept_lu on by default
+  auto P1 = compression(0.2);
+  const SolveReport first = s.solve(*P1.system, X_kept);
+  INFO(first.log());
+  REQUIRE(first.converged);
+  CHECK(first.newton >= 2);
+  CHECK(first.direct_fallbacks == 0);
+  CHECK((X_kept - X_direct).lpNorm<Eigen::Infinity>() <= 1e-6 * X_direct.lpNorm<Eigen::Infinity>());
+  const int lu_before = s.linear_solver().kept_factorizations();
+  CHECK(lu_before >= 1);
+
+  // Another system of the same layout, from a perturbed start: the LU is kept.
+  auto P2 = compression(0.2);
+  Eigen::VectorXd X2 = 1.01 * X_kept;
+  const SolveReport again = s.solve(*P2.system, X2);
+  INFO(again.log());
+  REQUIRE(again.converged);
+  CHECK(again.picard == 0);
+  CHECK(s.linear_solver().kept_factorizations() == lu_before);
+  CHECK(again.max_linear_iterations <= NonlinearSolverParams{}.kept_lu_iterations);
+  CHECK((X2 - X_direct).lpNorm<Eigen::Infinity>() <= 1e-6 * X_direct.lpNorm<Eigen::Infinity>());
+
+  // Other nodes: a new LU.
+  auto P3 = compression(0.2, true, 14);
+  Eigen::VectorXd X3;
+  REQUIRE(s.solve(*P3.system, X3).converged);
+  CHECK(s.linear_solver().kept_factorizations() > lu_before);
+
+  // The same nodes with multiplier rows added (the right side held
+  // vertically): the LU of P3 cannot serve, that of P2's layout can through
+  // the layout map; either way the direct solution.
+  auto P4 = compression(0.2);
+  P4.velocity(on_line({4, 0}, {1, 0}, 1e-9), {0, 1}, 0.0, "right side held");
+  auto P4d = compression(0.2);
+  P4d.velocity(on_line({4, 0}, {1, 0}, 1e-9), {0, 1}, 0.0, "right side held");
+  Eigen::VectorXd X4 = X_kept, X4d;
+  REQUIRE(!(P4.system->layout() == P2.system->layout()));
+  REQUIRE(direct.solve(*P4d.system, X4d).converged);
+  REQUIRE(s.solve(*P4.system, X4).converged);
+  CHECK((X4 - X4d).lpNorm<Eigen::Infinity>() <= 1e-6 * X4d.lpNorm<Eigen::Infinity>());
 }
 
 TEST_CASE("results do not depend on the thread count", "[flow][solver]") {
@@ -239,4 +316,57 @@ TEST_CASE("the Krylov preconditioner is kept while it works, with the same solut
   CHECK(kept.preconditioner_updates < kept.iterations());
   CHECK(kept.direct_fallbacks == 0);
   CHECK((X_every - X_kept).lpNorm<Eigen::Infinity>() <= 1e-7 * X_every.lpNorm<Eigen::Infinity>());
+}
+
+TEST_CASE("GMRES: the kept LU serves the layouts it can be matched to", "[flow][solver][gmres]") {
+  const int n = 300;
+  const Eigen::SparseMatrix<double> A = convection_diffusion(n);
+  Eigen::VectorXd b(n);
+  for (int i = 0; i < n; ++i) b[i] = std::cos(0.07 * i);
+  Eigen::SparseLU<Eigen::SparseMatrix<double>> lu(A);
+  const Eigen::VectorXd x_exact = lu.solve(b);
+  auto product = [&A](const Eigen::VectorXd& v) -> Eigen::VectorXd { return A * v; };
+  DofLayout L{n - 4, {}};
+  for (int k = 0; k < 4; ++k) L.multipliers.push_back(DofLayout::key(0, k, 0));
+
+  GmresSolver<> g;
+  g.set_tolerance(1e-10);
+  // An LU made while the layout did not describe A serves no layout.
+  g.set_layout(DofLayout{10, {}});
+  g.factorize_kept(A);
+  CHECK_FALSE(g.kept_usable(n));
+  g.set_layout(L);
+  CHECK_FALSE(g.kept_usable(n));
+  CHECK_THROWS_AS(g.solve_kept(product, b, 10), Error);
+
+  // Its own layout: one iteration.
+  g.factorize_kept(A);
+  REQUIRE(g.kept_usable(n));
+  Eigen::VectorXd x = g.solve_kept(product, b, 10);
+  CHECK(g.converged());
+  CHECK(g.last_iterations() == 1);
+  CHECK((x - x_exact).norm() <= 1e-8 * x_exact.norm());
+
+  // Two multiplier rows renamed (one released, one taken): a rank-two
+  // difference, a few more iterations, the same solution.
+  DofLayout L2 = L;
+  L2.multipliers[1] = DofLayout::key(0, 99, 0);
+  g.set_layout(L2);
+  REQUIRE(g.kept_usable(n));
+  x = g.solve_kept(product, b, 20);
+  CHECK(g.converged());
+  CHECK(g.last_iterations() <= 6);
+  CHECK((x - x_exact).norm() <= 1e-8 * x_exact.norm());
+
+  // Other field unknowns, or too many rows changed: not usable.
+  g.set_layout(DofLayout{n - 5, {0, 1, 2, 3, 4}});
+  CHECK_FALSE(g.kept_usable(n));
+  GmresParams strict;
+  strict.kept_max_changed_rows = 1;
+  GmresSolver<> h(strict);
+  h.set_layout(L);
+  h.factorize_kept(A);
+  h.set_layout(L2);
+  CHECK_FALSE(h.kept_usable(n));
+  CHECK(h.kept_factorizations() == 1);
 }

@@ -14,6 +14,7 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
+#include <maxentflow/core/dof_layout.hpp>
 #include <maxentflow/core/error.hpp>
 #include <maxentflow/flow/constraints.hpp>
 #include <maxentflow/flow/flow_discretization.hpp>
@@ -82,13 +83,13 @@ class FlowSystem {
     return pattern_.generation();
   }
 
-  /// Changes when the unknowns change meaning: another number of nodes, or
-  /// other multiplier rows (part, node, direction), whatever their coefficients.
-  /// A factorization made for one configuration can precondition the next
-  /// with the same key (GmresSolver's kept LU).
-  std::size_t layout_key() {
+  /// What the unknowns mean: 3 per node, then the multiplier rows by (part,
+  /// node, direction), whatever their coefficients. A factorization made for
+  /// one configuration can precondition the next through it (GmresSolver's
+  /// kept LU).
+  const DofLayout& layout() {
     update_structure();
-    return layout_key_;
+    return layout_;
   }
 
   /// A at X (Picard or Newton) and the residual R(X) = A_picard(X) X - F.
@@ -210,14 +211,11 @@ class FlowSystem {
     entry_pos_ = constraint_positions(pattern_.matrix());
     entry_coef_.clear();
     for (const auto& r : constraints_.rows()) entry_coef_.insert(entry_coef_.end(), r.coef.begin(), r.coef.end());
-    std::size_t k = static_cast<std::size_t>(number_of_nodes());
-    auto mix = [&k](long v) { k ^= static_cast<std::size_t>(v) + 0x9e3779b97f4a7c15ULL + (k << 6) + (k >> 2); };
-    for (const auto& r : constraints_.rows()) {
-      mix(r.part);
-      mix(r.node);
-      mix(std::abs(r.direction.x()) >= std::abs(r.direction.y()) ? 0 : 1);
-    }
-    layout_key_ = k;
+    layout_.fields = 3 * number_of_nodes();
+    layout_.multipliers.clear();
+    for (const auto& r : constraints_.rows())
+      layout_.multipliers.push_back(
+          DofLayout::key(r.part, r.node, std::abs(r.direction.x()) >= std::abs(r.direction.y()) ? 0 : 1));
   }
 
   void add_constraint_entries(Matrix& A, const std::vector<std::pair<int, int>>& pos) const {
@@ -292,7 +290,7 @@ class FlowSystem {
   };
   std::unique_ptr<LinearCompanion> linear_;  // heap: its assembler points at its disc
   bool structure_dirty_ = true;
-  std::size_t layout_key_ = 0;
+  DofLayout layout_;
   Eigen::VectorXd linearized_at_;  // the X of the assembler's last linearize()
   long generation_of_A_ = -1, generation_of_P_ = -1;
   double force_scale_ = 1.0;

@@ -7,12 +7,14 @@
 #include <cmath>
 #include <concepts>
 #include <cstddef>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
+#include <maxentflow/core/dof_layout.hpp>
 #include <maxentflow/core/error.hpp>
 #include <maxentflow/solver/linear_solver.hpp>
 
@@ -37,8 +39,8 @@ template <class S>
 concept KeptLuLinearSolver =
     PreconditionedLinearSolver<S> &&
     requires(S& s, const Eigen::SparseMatrix<double, Eigen::ColMajor, int>& A, const Eigen::VectorXd& b,
-             std::size_t key, Eigen::VectorXd (*op)(const Eigen::VectorXd&)) {
-      s.set_layout(key);
+             const DofLayout& layout, Eigen::VectorXd (*op)(const Eigen::VectorXd&)) {
+      s.set_layout(layout);
       { s.kept_usable(b.size()) } -> std::convertible_to<bool>;
       s.factorize_kept(A);
       { s.solve_kept(op, b, 1) } -> std::convertible_to<Eigen::VectorXd>;
@@ -53,6 +55,9 @@ struct GmresParams {
   /// more iterations would not save the LU.
   int max_iterations = 150;
   bool direct_fallback = true;  ///< no convergence: factorize A itself (slow but sure)
+  /// The kept LU preconditions a layout that differs from its own by at most
+  /// this many multiplier rows (added plus removed).
+  int kept_max_changed_rows = 16;
 };
 
 /// Why a sparse companion and not an incomplete factorization: max-ent
@@ -95,6 +100,7 @@ class GmresSolver {
     last_iterations_ = 0;
     last_residual_ = 0.0;
     if (b.norm() == 0.0) return Eigen::VectorXd::Zero(b.size());
+    if (frozen_ && kept_n_ != A.rows()) frozen_ = false;  // the kept LU is another system's
     if (!usable_ && !frozen_) return direct(A, b);
     // After a fallback this structure's solves use the LU of that earlier A:
     // Newton's next matrices differ little from it, so GMRES needs a few
@@ -102,7 +108,8 @@ class GmresSolver {
     const Preconditioner& M = frozen_ ? kept_ : M_;
     Ar_ = A;  // row-major: the product is parallel (OpenMP) in Eigen
     const int max_iterations = allow_fallback ? prm_.max_iterations : std::min(prm_.max_iterations, prm_.restart);
-    Eigen::VectorXd x = gmres([&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return Ar_ * v; }, M, b,
+    Eigen::VectorXd x = gmres([&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return Ar_ * v; },
+                              [&M](const Eigen::VectorXd& v) -> Eigen::VectorXd { return M.solve(v); }, b,
                               max_iterations);
     if (last_residual_ <= prm_.tol || !allow_fallback) return x;
     require(prm_.direct_fallback,
@@ -114,15 +121,20 @@ class GmresSolver {
 
   // The kept LU: a direct factorization of a full system matrix (Newton's
   // tangent, or A after a fallback), kept across iterations, steps and
-  // structures while the unknowns keep their layout (set_layout: the same
-  // nodes and multiplier rows), as the preconditioner of solves whose
-  // matrices have moved on a little.
+  // structures, as the preconditioner of solves whose matrices have moved on
+  // a little. Unknowns are matched through their layout: the same field
+  // unknowns, and multipliers by key. A few rows that came or went (contact
+  // taken or released) are a low-rank difference that GMRES absorbs in a
+  // few iterations: the LU's solve sees the common rows (a released row's
+  // residual set to zero), and a new row's multiplier passes unchanged.
 
-  /// The layout of the next solves' unknowns (a key that changes when
-  /// their meaning does); a kept LU of another layout is not used.
-  void set_layout(std::size_t key) { layout_ = key; }
-  /// A kept LU exists for this layout and size.
-  bool kept_usable(Eigen::Index n) const { return kept_ok_ && kept_layout_ == layout_ && kept_n_ == n; }
+  /// The layout of the next solves' unknowns.
+  void set_layout(const DofLayout& layout) {
+    layout_ = layout;
+    remap();
+  }
+  /// A kept LU can precondition solves of the current layout and size.
+  bool kept_usable(Eigen::Index n) const { return kept_ok_ && map_ok_ && layout_.size() == n; }
   /// LU of A, kept for the current layout.
   void factorize_kept(const Matrix& A) {
     kept_ok_ = false;
@@ -130,8 +142,10 @@ class GmresSolver {
     kept_.factorize(A);
     kept_ok_ = true;
     kept_layout_ = layout_;
+    if (layout_.size() != A.rows()) kept_layout_ = DofLayout{-1, {}};  // no layout given: matches none
     kept_n_ = A.rows();
     ++kept_factorizations_;
+    remap();
   }
   /// GMRES on op(x) = b (op: the matrix-vector product, e.g. matrix-free)
   /// preconditioned by the kept LU, at most max_iterations, no fallback: the
@@ -142,7 +156,8 @@ class GmresSolver {
     last_iterations_ = 0;
     last_residual_ = 0.0;
     if (b.norm() == 0.0) return Eigen::VectorXd::Zero(b.size());
-    return gmres(std::forward<Op>(op), kept_, b, max_iterations);
+    return gmres(std::forward<Op>(op), [this](const Eigen::VectorXd& v) { return kept_apply(v); }, b,
+                 max_iterations);
   }
   /// LU factorizations made for the kept preconditioner (direct fallbacks included).
   int kept_factorizations() const { return kept_factorizations_; }
@@ -178,9 +193,51 @@ class GmresSolver {
       return false;
     }
   }
-  // Restarted GMRES from x = 0, right-preconditioned: op(M^-1 u) = b, x = M^-1 u.
-  template <class Op>
-  Eigen::VectorXd gmres(Op&& op, const Preconditioner& M, const Eigen::VectorXd& b, int max_iterations) {
+  // Matches the current layout's multipliers to the kept LU's.
+  void remap() {
+    map_ok_ = identity_ = false;
+    if (!kept_ok_ || kept_layout_.fields != layout_.fields) return;
+    if (kept_layout_ == layout_) {
+      map_ok_ = identity_ = true;
+      return;
+    }
+    std::unordered_map<std::uint64_t, int> old;
+    for (std::size_t j = 0; j < kept_layout_.multipliers.size(); ++j)
+      old.emplace(kept_layout_.multipliers[j], static_cast<int>(j));
+    map_.assign(layout_.multipliers.size(), -1);
+    std::size_t matched = 0;
+    for (std::size_t i = 0; i < layout_.multipliers.size(); ++i) {
+      const auto it = old.find(layout_.multipliers[i]);
+      if (it == old.end() || it->second < 0) continue;
+      map_[i] = it->second;
+      it->second = -1;  // each old row serves one new row
+      ++matched;
+    }
+    const std::size_t changed = layout_.multipliers.size() + kept_layout_.multipliers.size() - 2 * matched;
+    map_ok_ = static_cast<int>(changed) <= prm_.kept_max_changed_rows;
+  }
+  // z = M^-1 r with M the kept LU, through the layout map.
+  Eigen::VectorXd kept_apply(const Eigen::VectorXd& r) const {
+    if (identity_) return kept_.solve(r);
+    const int F = layout_.fields;
+    Eigen::VectorXd r0 = Eigen::VectorXd::Zero(kept_n_);
+    r0.head(F) = r.head(F);
+    for (std::size_t i = 0; i < map_.size(); ++i)
+      if (map_[i] >= 0) r0[F + map_[i]] = r[F + static_cast<Eigen::Index>(i)];
+    const Eigen::VectorXd z0 = kept_.solve(r0);
+    Eigen::VectorXd z(r.size());
+    z.head(F) = z0.head(F);
+    for (std::size_t i = 0; i < map_.size(); ++i) {
+      const Eigen::Index k = F + static_cast<Eigen::Index>(i);
+      z[k] = map_[i] >= 0 ? z0[F + map_[i]] : r[k];
+    }
+    return z;
+  }
+
+  // Restarted GMRES from x = 0, right-preconditioned: op(M^-1 u) = b, x = M^-1 u
+  // (pre(v) = M^-1 v).
+  template <class Op, class Pre>
+  Eigen::VectorXd gmres(Op&& op, Pre&& pre, const Eigen::VectorXd& b, int max_iterations) {
     const Eigen::Index n = b.size();
     Eigen::VectorXd x = Eigen::VectorXd::Zero(n);
     const int m = std::max(1, prm_.restart);
@@ -200,7 +257,7 @@ class GmresSolver {
       int j = 0;
       for (; j < m && last_iterations_ < max_iterations; ++j) {
         ++last_iterations_;
-        w = op(M.solve(V_.col(j)));
+        w = op(pre(V_.col(j)));
         // Classical Gram-Schmidt, repeated once ("twice is enough") for the
         // orthogonality a tight tolerance needs; as matrix-vector products,
         // which stay cheap next to A's product up to the restart length.
@@ -231,7 +288,7 @@ class GmresSolver {
       // x += M^-1 V y with H y = g (upper triangular j x j).
       const Eigen::VectorXd y =
           H_.topLeftCorner(j, j).template triangularView<Eigen::Upper>().solve(g_.head(j));
-      x += M.solve(V_.leftCols(j) * y);
+      x += pre(V_.leftCols(j) * y);
       r = b - op(x);
       rnorm = r.norm();
       H_.setZero();
@@ -255,8 +312,9 @@ class GmresSolver {
   params prm_;
   bool analyzed_ = false, usable_ = false, frozen_ = false;
   Preconditioner M_, kept_;
-  bool kept_ok_ = false;
-  std::size_t layout_ = 0, kept_layout_ = 0;
+  bool kept_ok_ = false, map_ok_ = false, identity_ = false;
+  DofLayout layout_, kept_layout_;
+  std::vector<int> map_;  // current multiplier -> the kept LU's (-1: new)
   Eigen::Index kept_n_ = -1;
   int kept_factorizations_ = 0;
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> Ar_;

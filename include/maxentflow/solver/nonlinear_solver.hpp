@@ -45,11 +45,11 @@ concept PreconditionedSystem =
       { s.preconditioner_generation() } -> std::convertible_to<long>;
     };
 
-/// A system whose unknowns' layout has a key (FlowSystem::layout_key), so
-/// that a factorization can be kept while the key stays.
+/// A system that says what its unknowns mean (FlowSystem::layout), so that a
+/// factorization can be kept across systems, and applies its tangent.
 template <class S>
 concept LayoutKeyedSystem = NonlinearSystem<S> && requires(S& s, const Eigen::VectorXd& x, Eigen::VectorXd& y) {
-  { s.layout_key() } -> std::convertible_to<std::size_t>;
+  { s.layout() } -> std::convertible_to<const DofLayout&>;
   s.apply_tangent(x, x, y);  // y = J(x) x: Newton's tangent applied matrix-free
 };
 
@@ -138,7 +138,8 @@ struct NonlinearSolverParams {
   /// a few per cent of an assembly), so that a warm-started Newton iteration
   /// assembles no matrix. The LU is made again
   /// (tangent assembled at the current iterate) when GMRES needs more than
-  /// kept_lu_iterations, the layout changes, or preconditioner_refresh <= 0.
+  /// max(kept_lu_iterations, GMRES iterations that cost half a factorization
+  /// (both measured)), the layout changes too much, or preconditioner_refresh <= 0.
   /// Systems with more unknowns than kept_lu_max_unknowns use the
   /// linear-triangle preconditioner instead (the LU's memory).
   bool kept_lu = true;
@@ -192,7 +193,7 @@ class NonlinearSolver {
     Eigen::VectorXd R, Rtry, Xtry, dx;
     for (int it = 0; it < prm_.max_iterations; ++it) {
       const Linearization kind = phase;
-      const bool kept = kind == Linearization::newton && use_kept_lu(sys, n);
+      const bool kept = use_kept_lu(sys, n) && kind == Linearization::newton;
       auto t0 = clock::now();
       bool assembled = !(kept && kept_lu_current(n));
       if (assembled)
@@ -340,9 +341,9 @@ class NonlinearSolver {
   template <class System>
   bool use_kept_lu(System& sys, int n) {
     if constexpr (KeptLuLinearSolver<Linear> && LayoutKeyedSystem<System>) {
-      if (!prm_.kept_lu || n > prm_.kept_lu_max_unknowns) return false;
-      linear_.set_layout(sys.layout_key());
-      return true;
+      // Every iteration: a direct fallback of a Picard solve also keeps its LU.
+      linear_.set_layout(sys.layout());
+      return prm_.kept_lu && n <= prm_.kept_lu_max_unknowns;
     } else {
       return false;
     }
@@ -367,7 +368,8 @@ class NonlinearSolver {
       return std::chrono::duration<double>(clock::now() - a).count();
     };
     const int n = sys.size();
-    auto refactor = [&] {
+    auto refactor = [&](const char* why) {
+      if (prm_.log) *prm_.log << "  kept LU made: " << why << "\n";
       auto t0 = clock::now();
       if (!assembled) {
         Eigen::VectorXd R2;
@@ -377,12 +379,13 @@ class NonlinearSolver {
       rep.assembly_seconds += seconds(t0);
       t0 = clock::now();
       linear_.factorize_kept(A_);
-      rep.factorization_seconds += seconds(t0);
+      factorization_cost_ = seconds(t0);
+      rep.factorization_seconds += factorization_cost_;
       ++rep.preconditioner_updates;
     };
     bool fresh = false;
     if (!kept_lu_current(n)) {
-      refactor();
+      refactor(linear_.kept_factorizations() == 0 ? "first" : "layout");
       fresh = true;
     }
     const double eta = std::max(res, 0.5 * prm_.residual_tol / std::max(res, 1e-300));
@@ -391,14 +394,18 @@ class NonlinearSolver {
       sys.apply_tangent(X, v, Jv_);
       return Jv_;
     };
+    // GMRES iterations worth half a factorization before the LU is made again.
+    const int cap = std::max(prm_.kept_lu_iterations,
+                             iteration_cost_ > 0 ? static_cast<int>(0.5 * factorization_cost_ / iteration_cost_) : 0);
     auto t0 = clock::now();
-    Eigen::VectorXd dx = linear_.solve_kept(tangent, -R, prm_.kept_lu_iterations);
+    Eigen::VectorXd dx = linear_.solve_kept(tangent, -R, cap);
     linear_its = linear_.last_iterations();
+    if (linear_its > 0) iteration_cost_ = seconds(t0) / linear_its;
     if (!linear_.converged() && !fresh) {
       rep.solve_seconds += seconds(t0);
-      refactor();
+      refactor("slow GMRES");
       t0 = clock::now();
-      dx = linear_.solve_kept(tangent, -R, prm_.kept_lu_iterations);
+      dx = linear_.solve_kept(tangent, -R, cap);
       linear_its += linear_.last_iterations();
     }
     rep.solve_seconds += seconds(t0);
@@ -411,6 +418,7 @@ class NonlinearSolver {
   Linear linear_;
   Matrix A_, P_;
   Eigen::VectorXd Jv_;
+  double factorization_cost_ = 0.0, iteration_cost_ = 0.0;  // seconds: kept LU, one GMRES iteration with it
   long analyzed_generation_ = -1;
   int analyzed_size_ = -1;
   int picard_since_switch_ = 0;
