@@ -131,19 +131,21 @@ struct NonlinearSolverParams {
   /// once a solve needs more than this times the Krylov iterations per decade
   /// of residual reduction of the first solve with it; <= 0: every iteration.
   double preconditioner_refresh = 1.1;
-  /// Policies that keep an LU (KeptLuLinearSolver) on systems with a layout
-  /// key: Newton iterations solve with GMRES preconditioned by an LU of
-  /// Newton's tangent kept across iterations and solves (steps) of the same
-  /// layout, with the tangent applied matrix-free (apply_tangent, which costs
-  /// a few per cent of an assembly), so that a warm-started Newton iteration
-  /// assembles no matrix. The LU is made again
-  /// (tangent assembled at the current iterate) when GMRES needs more than
-  /// max(kept_lu_iterations, GMRES iterations that cost half a factorization
-  /// (both measured)), the layout changes too much, or preconditioner_refresh <= 0.
-  /// Systems with more unknowns than kept_lu_max_unknowns use the
-  /// linear-triangle preconditioner instead (the LU's memory).
+  /// Policies that keep an LU (KeptLuLinearSolver) on systems that give their
+  /// layout (LayoutKeyedSystem): Newton iterations solve with GMRES
+  /// preconditioned by an LU of Newton's tangent kept across iterations and
+  /// solves (steps), with the tangent applied matrix-free (apply_tangent,
+  /// which costs a few per cent of an assembly), so that a warm-started Newton
+  /// iteration assembles no matrix. The LU is made again (tangent assembled at
+  /// the current iterate) when GMRES does not converge in kept_lu_iterations,
+  /// the layout changes too much, or preconditioner_refresh <= 0. Systems with
+  /// more unknowns than kept_lu_max_unknowns use the linear-triangle
+  /// preconditioner instead (the LU's memory). kept_lu_iterations is a count,
+  /// not a measured cost, so that a run does not depend on the machine's load:
+  /// a factorization costs about 50 GMRES iterations with it (measured at 525,
+  /// 1k and 4k nodes), and an LU a step or two old needs 5-20.
   bool kept_lu = true;
-  int kept_lu_iterations = 8;
+  int kept_lu_iterations = 20;
   /// The forcing-term cap of those solves: a GMRES iteration with the kept LU
   /// costs a small part of a Newton iteration, so a tighter linear solve that
   /// saves a Newton iteration pays (E1: 2 instead of 3 per step).
@@ -357,9 +359,9 @@ class NonlinearSolver {
   }
 
   // One Newton direction: GMRES on J dx = -R with J v matrix-free,
-  // preconditioned by the kept LU (made from the assembled
-  // tangent at X when there is none for this layout, or when it no longer
-  // brings GMRES below the tolerance in kept_lu_iterations).
+  // preconditioned by the kept LU (made from the assembled tangent at X when
+  // there is none for this layout, or when it no longer brings GMRES below
+  // the tolerance in kept_lu_iterations).
   template <class System>
   Eigen::VectorXd kept_lu_newton(System& sys, const Eigen::VectorXd& X, const Eigen::VectorXd& R,
                                  double res, bool assembled, SolveReport& rep, int& linear_its) {
@@ -379,8 +381,7 @@ class NonlinearSolver {
       rep.assembly_seconds += seconds(t0);
       t0 = clock::now();
       linear_.factorize_kept(A_);
-      factorization_cost_ = seconds(t0);
-      rep.factorization_seconds += factorization_cost_;
+      rep.factorization_seconds += seconds(t0);
       ++rep.preconditioner_updates;
     };
     bool fresh = false;
@@ -394,13 +395,10 @@ class NonlinearSolver {
       sys.apply_tangent(X, v, Jv_);
       return Jv_;
     };
-    // GMRES iterations worth half a factorization before the LU is made again.
-    const int cap = std::max(prm_.kept_lu_iterations,
-                             iteration_cost_ > 0 ? static_cast<int>(0.5 * factorization_cost_ / iteration_cost_) : 0);
+    const int cap = prm_.kept_lu_iterations;
     auto t0 = clock::now();
     Eigen::VectorXd dx = linear_.solve_kept(tangent, -R, cap);
     linear_its = linear_.last_iterations();
-    if (linear_its > 0) iteration_cost_ = seconds(t0) / linear_its;
     if (!linear_.converged() && !fresh) {
       rep.solve_seconds += seconds(t0);
       refactor("slow GMRES");
@@ -418,7 +416,6 @@ class NonlinearSolver {
   Linear linear_;
   Matrix A_, P_;
   Eigen::VectorXd Jv_;
-  double factorization_cost_ = 0.0, iteration_cost_ = 0.0;  // seconds: kept LU, one GMRES iteration with it
   long analyzed_generation_ = -1;
   int analyzed_size_ = -1;
   int picard_since_switch_ = 0;
