@@ -21,7 +21,9 @@
 #include <maxentflow/solver/linear_solver.hpp>
 #include <maxentflow/solver/nonlinear_solver.hpp>
 #include <maxentflow/contact/rigid_tool.hpp>
+#include <maxentflow/contact/contact_law.hpp>
 #include <maxentflow/contact/contact.hpp>
+#include <maxentflow/contact/contact_set.hpp>
 #include <maxentflow/stepper/node_adaptivity.hpp>
 #include <maxentflow/stepper/stepper.hpp>
 #include <maxentflow/stepper/results_writer.hpp>

@@ -418,3 +418,109 @@ TEST_CASE("V1 with rezoning: plane-strain compression to half height stays exact
   CHECK(max_force_error < 1e-8);
   CHECK(max_shape_error < 1e-8);
 }
+
+namespace {
+
+// A contact law defined outside the library: sticking to a belt that runs
+// along the tool at w relative to it (the tangential target v_tool . t + w).
+struct Belt {
+  double w = 0.0;
+  std::string name() const { return "belt"; }
+  void conditions(const ContactPoint& c, const RigidTool& tool, double dt,
+                  std::vector<ContactCondition>& out) const {
+    out.push_back(normal_contact(c, tool, dt));
+    const Eigen::Vector2d t = c.tangent();
+    out.push_back({t, tool.velocity().dot(t) + w, 1});
+  }
+};
+static_assert(ContactLaw<Belt>);
+
+struct LawRun {
+  StepRecord rec;
+  double max_tangential = 0.0, mean_tangential = 0.0;  // v . t on the top plate's contact nodes off the axis
+  int contact_nodes = 0;
+  std::string law;
+};
+
+// One step of a plane-strain block (half width 8, height 6, symmetry at x = 0)
+// pressed by a top plate carrying `law`; the bottom plate is frictionless.
+LawRun press_block(AnyContactLaw law) {
+  StepperParams prm;
+  prm.geometry = Geometry::plane_strain;
+  prm.dt = 0.5;
+  Stepper<NortonHoff> s(block_nodes(9, 7, 8, 6, false), NortonHoff(150.0, 0.2, 1e-7), prm);
+  s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
+  RigidTool top = flat_plate("top", {0, 6}, {0, -1}, 100);
+  top.set_velocity({0, -0.05});
+  const Eigen::Vector2d t = top.closest({1, 7}).normal;  // the top plate's normal, +y
+  s.add_tool(std::move(top), std::move(law));
+  s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+  LawRun p;
+  p.rec = s.step();
+  p.law = s.contact().law(1).name();
+  const Eigen::Vector2d tangent(-t.y(), t.x());
+  for (Eigen::Index a = 0; a < s.nodes_solved().cols(); ++a)
+    // Off the symmetry axis, whose v_x = 0 comes first (a parallel row is not added).
+    if (s.contact_flags()[static_cast<std::size_t>(a)] == 2 && s.nodes_solved()(0, a) > 1e-9) {
+      const double vt = s.velocity().col(a).dot(tangent);
+      p.max_tangential = std::max(p.max_tangential, std::abs(vt));
+      p.mean_tangential += vt;
+      ++p.contact_nodes;
+    }
+  p.mean_tangential /= std::max(p.contact_nodes, 1);
+  return p;
+}
+
+}  // namespace
+
+TEST_CASE("contact laws: sticking holds the contact face, a law from outside the library plugs in",
+          "[stepper][contact]") {
+  const LawRun slip = press_block(Frictionless{});
+  const LawRun stick = press_block(Sticking{});
+  const LawRun belt = press_block(Belt{0.02});
+  CHECK(slip.law == "frictionless");
+  CHECK(stick.law == "sticking");
+  CHECK(belt.law == "belt");
+  REQUIRE(slip.contact_nodes >= 7);
+  REQUIRE(stick.contact_nodes == slip.contact_nodes);
+  // Frictionless: the face spreads with the block (v_x = e x, up to 0.05 / 6 * 8).
+  CHECK(slip.max_tangential > 0.05);
+  // Sticking: the face moves with the plate; the hat multipliers impose it on
+  // average over each node's segments, so nodally to a few per cent.
+  CHECK(stick.max_tangential < 0.05 * slip.max_tangential);
+  // Friction raises the press force and pulls the plate outward (+x on the tool).
+  const double F_slip = slip.rec.tool_force[1].y(), F_stick = stick.rec.tool_force[1].y();
+  CHECK(F_stick > 1.05 * F_slip);
+  CHECK(std::abs(slip.rec.tool_force[1].x()) < 1e-6 * F_slip);
+  CHECK(stick.rec.tool_force[1].x() > 0.02 * F_stick);
+  // The belt drags the face along at w.
+  CHECK(belt.mean_tangential == Approx(0.02).epsilon(0.05));
+}
+
+TEST_CASE("step control is a policy: a controller that never retries fails at the first attempt",
+          "[stepper]") {
+  struct OneTry {
+    int substeps(int failures) const { return failures == 0 ? 1 : 0; }
+  };
+  static_assert(StepControl<OneTry> && StepControl<HalvingRetry>);
+  StepperParams prm;
+  prm.geometry = Geometry::plane_strain;
+  prm.solver.max_iterations = 1;  // no solve can converge
+  Stepper<NortonHoff, GmresSolver<>, OneTry> s(block_nodes(5, 5, 4, 4, false), NortonHoff(), prm);
+  RigidTool top = flat_plate("top", {0, 4}, {0, -1}, 50);
+  top.set_velocity({0, -0.1});
+  s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 50));
+  s.add_tool(top);
+  s.add_velocity_condition({"symmetry", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+  try {
+    s.step();
+    FAIL("no exception");
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    CHECK_THAT(what, Catch::Contains("failed after 1 attempts") && Catch::Contains("no convergence"));
+    CHECK_THAT(what, !Catch::Contains("dt/2"));
+  }
+  CHECK(s.steps_done() == 0);
+  CHECK(HalvingRetry{2}.substeps(2) == 4);
+  CHECK(HalvingRetry{2}.substeps(3) == 0);
+}

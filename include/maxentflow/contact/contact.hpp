@@ -1,5 +1,5 @@
-// maxentflow: frictionless rigid-tool contact by Lagrange multipliers
-// (Eqs. 16-17), multipliers on the workpiece's alpha-shape boundary.
+// maxentflow: rigid-tool contact by Lagrange multipliers (Eqs. 16-17) on the
+// workpiece's alpha-shape boundary: detection and the active set of one tool.
 #pragma once
 
 #include <algorithm>
@@ -10,21 +10,12 @@
 #include <Eigen/Core>
 
 #include <maxentflow/basis/maxent_basis.hpp>
+#include <maxentflow/contact/contact_law.hpp>
 #include <maxentflow/contact/rigid_tool.hpp>
 #include <maxentflow/flow/constraints.hpp>
 #include <maxentflow/flow/flow_discretization.hpp>
 
 namespace maxentflow {
-
-/// One boundary node's state against one tool.
-struct ContactPoint {
-  int node = -1;
-  ToolProjection projection;
-  double h = 0.0;  ///< nodal spacing, the scale of the gap tolerances
-  bool active = false;
-  int releases = 0;  ///< times the active set released it this step (at most once)
-  int prev = -1, next = -1;  ///< neighbouring boundary nodes (indices into points())
-};
 
 /// Contact of the workpiece boundary with one rigid tool over a step dt.
 ///
@@ -37,8 +28,9 @@ struct ContactPoint {
 /// neighbour gets a point constraint. The force the workpiece exerts on the
 /// tool is the sum of the multipliers times their hat integrals and normals;
 /// compressive contact has Lambda < 0 (the force points into the tool).
-/// Frictionless: only the normal velocity is constrained (friction would add
-/// tangential rows or a traction with the same hats).
+/// What an active node's multipliers impose is the contact law's
+/// (contact_law.hpp): the normal condition above, and a tangential one for
+/// sticking; the active set reads the normal multipliers only.
 class ToolContact {
  public:
   using Mesh = IntegrationMesh<Traits<2>>;
@@ -94,82 +86,36 @@ class ToolContact {
                                           [](const ContactPoint& c) { return c.active; }));
   }
 
-  /// Adds the rows of the active nodes to `cs` under `part`.
+  /// Adds the rows `law` gives the active nodes to `cs` under `part`: hat
+  /// multipliers on the segments whose two ends are active, a point condition
+  /// at an active node with no active neighbour.
   void add_rows(ConstraintSet& cs, int part, const Mesh& mesh, const FlowDiscretization& disc,
-                const MaxEntBasis<2>& basis, const RigidTool& tool, double dt) const {
-    std::map<int, const ContactPoint*> active;
+                const MaxEntBasis<2>& basis, const RigidTool& tool, const AnyContactLaw& law,
+                double dt) const {
+    std::map<int, std::vector<ContactCondition>> cond;  // active node -> its conditions
     for (const auto& c : points_)
-      if (c.active) active[c.node] = &c;
-    if (active.empty()) return;
-    const auto& edges = mesh.edges();
-    const int ne = disc.points_per_edge();
-    const auto& tab = disc.edge_basis();
-    struct Acc {
-      std::map<int, double> coef;
-      double rhs = 0, len = 0;
-    };
-    std::map<int, Acc> acc;
-    auto target = [&](const ContactPoint& c) {  // (v - v_tool) . n = -g / dt
-      return tool.velocity().dot(c.projection.normal) - c.projection.gap / dt;
-    };
-    for (const auto& seg : mesh.boundary_segments()) {
-      const auto ia = active.find(seg.a), ib = active.find(seg.b);
-      if (ia == active.end() || ib == active.end()) continue;
-      const auto& edge = edges[static_cast<std::size_t>(seg.edge)];
-      for (int k = 0; k < ne; ++k) {
-        const int ge = seg.edge * ne + k;
-        const double s = disc.edge_parameter(k);
-        const double w = disc.edge_weights()(ge);
-        const int ends[2] = {edge.a, edge.b};
-        const double hat[2] = {1.0 - s, s};
-        const auto nodes = tab.nodes(ge);
-        const auto p = tab.values(ge);
-        for (int e = 0; e < 2; ++e) {
-          const ContactPoint& c = *active[ends[e]];
-          const Eigen::Vector2d& n = c.projection.normal;
-          Acc& r = acc[ends[e]];
-          for (std::size_t j = 0; j < nodes.size(); ++j) {
-            if (p[j] == 0.0) continue;
-            for (int cc = 0; cc < 2; ++cc)
-              if (n[cc] != 0.0) r.coef[velocity_dof(nodes[j], cc)] += w * hat[e] * p[j] * n[cc];
-          }
-          r.rhs += w * hat[e] * target(c);
-          r.len += w * hat[e];
-        }
+      if (c.active) law.conditions(c, tool, dt, cond[c.node]);
+    if (cond.empty()) return;
+    const std::size_t roles = cond.begin()->second.size();
+    for (const auto& [node, list] : cond)
+      require(list.size() == roles,
+              detail::cat("contact law '", law.name(), "' gave ", list.size(), " conditions at node ", node,
+                          " and ", roles, " at node ", cond.begin()->first),
+              "ToolContact::add_rows");
+    for (std::size_t r = 0; r < roles; ++r) {
+      const auto hats = hat_integrals(
+          mesh, disc, [&](const BoundarySegment& seg) { return cond.count(seg.a) && cond.count(seg.b); },
+          [&](int a) { return cond.at(a)[r].direction; },
+          [&](int a, const Eigen::Vector2d&) { return cond.at(a)[r].target; });
+      for (const auto& [node, list] : cond) {
+        const ContactCondition& k = list[r];
+        if (cs.has_parallel_row(node, k.direction)) continue;
+        const auto it = hats.find(node);
+        ConstraintRow row = it != hats.end() ? ConstraintSet::hat_row(it->second, part, node, k.direction)
+                                             : point_row(mesh, basis, part, node, k);
+        row.role = k.role;
+        cs.add(std::move(row));
       }
-    }
-    for (const auto& [node, cp] : active) {
-      const Eigen::Vector2d& n = cp->projection.normal;
-      const bool taken = std::any_of(cs.rows().begin(), cs.rows().end(), [&](const ConstraintRow& r) {
-        return r.node == node && std::abs(r.direction.dot(n)) > 1.0 - 1e-12;
-      });
-      if (taken) continue;
-      ConstraintRow row;
-      row.part = part;
-      row.node = node;
-      row.direction = n;
-      const auto it = acc.find(node);
-      if (it != acc.end()) {
-        for (const auto& [dof, c] : it->second.coef) {
-          row.dof.push_back(dof);
-          row.coef.push_back(c);
-        }
-        row.rhs = it->second.rhs;
-        row.force = it->second.len * n;
-      } else {  // isolated contact: the point condition at the node, unit weight
-        const auto v = basis.evaluate(Eigen::Vector2d(mesh.nodes().col(node)), false);
-        std::map<int, double> c;
-        for (std::size_t j = 0; j < v.node.size(); ++j)
-          for (int cc = 0; cc < 2; ++cc)
-            if (n[cc] != 0.0 && v.p[j] != 0.0) c[velocity_dof(v.node[j], cc)] += v.p[j] * n[cc];
-        for (const auto& [dof, cf] : c) {
-          row.dof.push_back(dof);
-          row.coef.push_back(cf);
-        }
-        row.rhs = target(*cp);
-        row.force = n;
-      }
-      cs.add(std::move(row));
     }
   }
 
@@ -181,7 +127,7 @@ class ToolContact {
     std::map<int, double> lambda;
     double lmax = 0.0;
     for (std::size_t i = 0; i < cs.rows().size(); ++i)
-      if (cs.rows()[i].part == part) {
+      if (cs.rows()[i].part == part && cs.rows()[i].role == 0) {
         const double l = X[3 * n_nodes + static_cast<Eigen::Index>(i)];
         lambda[cs.rows()[i].node] = l;
         lmax = std::max(lmax, std::abs(l));
@@ -237,6 +183,28 @@ class ToolContact {
   }
 
  private:
+  // An isolated contact node: the condition at the node itself, unit weight.
+  static ConstraintRow point_row(const Mesh& mesh, const MaxEntBasis<2>& basis, int part, int node,
+                                 const ContactCondition& k) {
+    const auto v = basis.evaluate(Eigen::Vector2d(mesh.nodes().col(node)), false);
+    std::map<int, double> c;
+    const Eigen::Vector2d& n = k.direction;
+    for (std::size_t j = 0; j < v.node.size(); ++j)
+      for (int cc = 0; cc < 2; ++cc)
+        if (n[cc] != 0.0 && v.p[j] != 0.0) c[velocity_dof(v.node[j], cc)] += v.p[j] * n[cc];
+    ConstraintRow row;
+    row.part = part;
+    row.node = node;
+    row.direction = n;
+    for (const auto& [dof, cf] : c) {
+      row.dof.push_back(dof);
+      row.coef.push_back(cf);
+    }
+    row.rhs = k.target;
+    row.force = n;
+    return row;
+  }
+
   params prm_;
   std::vector<ContactPoint> points_;
   std::vector<int> changed_;

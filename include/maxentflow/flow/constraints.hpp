@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <string>
@@ -11,6 +12,7 @@
 
 #include <Eigen/Core>
 
+#include <maxentflow/core/dof_layout.hpp>
 #include <maxentflow/core/error.hpp>
 #include <maxentflow/flow/flow_discretization.hpp>
 #include <maxentflow/flow/stabilized_flow.hpp>
@@ -28,6 +30,11 @@ struct ConstraintRow {
   int node = -1;  ///< the boundary node carrying the multiplier's hat function (-1: none)
   Eigen::Vector2d direction = Eigen::Vector2d::Zero();  ///< constrained velocity direction
   Eigen::Vector2d force = Eigen::Vector2d::Zero();
+  int role = 0;   ///< 0: the condition or contact normal; 1: a contact law's tangential row
+  /// The row's key in a DofLayout (matches it across configurations).
+  std::uint64_t key() const {
+    return DofLayout::key(part, node, std::abs(direction.x()) >= std::abs(direction.y()) ? 0 : 1, role);
+  }
 };
 
 /// Chooses boundary segments by their end points (material on the left of a -> b).
@@ -39,6 +46,53 @@ inline SegmentSelector on_line(Eigen::Vector2d point, Eigen::Vector2d normal, do
   return [point, normal, tol](const Eigen::Vector2d& xa, const Eigen::Vector2d& xb) {
     return std::abs((xa - point).dot(normal)) <= tol && std::abs((xb - point).dot(normal)) <= tol;
   };
+}
+
+/// The hat-function integrals of one multiplier (Eq. 15): the row
+/// int N_a (sum_b phi_b V_b) . e_a ds over the segments at node a, its right-hand
+/// side int N_a g ds and int N_a ds (the force per unit multiplier).
+struct HatIntegrals {
+  std::map<int, double> coef;  ///< velocity dof -> coefficient
+  double rhs = 0.0, length = 0.0;
+};
+
+/// Hat integrals for every end node of the boundary segments `keep` accepts,
+/// node a's multiplier constraining v . direction(a) = value(a, x) along them.
+/// The one place where hat-multiplier rows are integrated (velocity conditions,
+/// tool contact).
+template <class Keep, class Direction, class Value>
+std::map<int, HatIntegrals> hat_integrals(const IntegrationMesh<Traits<2>>& mesh, const FlowDiscretization& disc,
+                                          Keep&& keep, Direction&& direction, Value&& value) {
+  std::map<int, HatIntegrals> out;
+  const auto& edges = mesh.edges();
+  const int ne = disc.points_per_edge();
+  const auto& tab = disc.edge_basis();
+  for (const auto& seg : mesh.boundary_segments()) {
+    if (!keep(seg)) continue;
+    const auto& edge = edges[static_cast<std::size_t>(seg.edge)];
+    for (int k = 0; k < ne; ++k) {
+      const int ge = seg.edge * ne + k;
+      const double s = disc.edge_parameter(k);  // from edge.a
+      const double w = disc.edge_weights()(ge);
+      const Eigen::Vector2d x = disc.edge_points().col(ge);
+      const int ends[2] = {edge.a, edge.b};
+      const double hat[2] = {1.0 - s, s};
+      const auto nodes = tab.nodes(ge);
+      const auto p = tab.values(ge);
+      for (int e = 0; e < 2; ++e) {
+        const Eigen::Vector2d n = direction(ends[e]);
+        HatIntegrals& r = out[ends[e]];
+        for (std::size_t j = 0; j < nodes.size(); ++j) {
+          if (p[j] == 0.0) continue;
+          for (int c = 0; c < 2; ++c)
+            if (n[c] != 0.0) r.coef[velocity_dof(nodes[j], c)] += w * hat[e] * p[j] * n[c];
+        }
+        r.rhs += w * hat[e] * value(ends[e], x);
+        r.length += w * hat[e];
+      }
+    }
+  }
+  return out;
 }
 
 /// The constraint rows of a configuration, grouped into named parts
@@ -77,6 +131,21 @@ class ConstraintSet {
     rows_.push_back(std::move(row));
   }
 
+  /// The row of node `node`'s hat multiplier from its integrals.
+  static ConstraintRow hat_row(const HatIntegrals& h, int part, int node, const Eigen::Vector2d& direction) {
+    ConstraintRow row;
+    row.direction = direction;
+    row.part = part;
+    row.node = node;
+    for (const auto& [dof, c] : h.coef) {
+      row.dof.push_back(dof);
+      row.coef.push_back(c);
+    }
+    row.rhs = h.rhs;
+    row.force = h.length * direction;
+    return row;
+  }
+
   /// v . e = value(x) on the boundary segments chosen by `select` (Eq. 15), e a
   /// unit direction (e = (1,0) for v_x, the normal for a symmetry line). One
   /// multiplier per segment end node, hat functions along the chosen segments:
@@ -94,59 +163,25 @@ class ConstraintSet {
             detail::cat("ConstraintSet::add_velocity, part '", part_name, "'"));
     direction.normalize();
     const auto& X = mesh.nodes();
-    const auto& edges = mesh.edges();
-    const int ne = disc.points_per_edge();
-    const auto& tab = disc.edge_basis();
-    std::map<int, std::map<int, double>> coef;  // multiplier node -> dof -> coefficient
-    std::map<int, std::pair<double, double>> rhs_len;  // node -> (int N value, int N)
-    for (const auto& seg : mesh.boundary_segments()) {
-      if (!select(X.col(seg.a), X.col(seg.b))) continue;
-      const auto& edge = edges[static_cast<std::size_t>(seg.edge)];
-      for (int k = 0; k < ne; ++k) {
-        const int ge = seg.edge * ne + k;
-        const double s = disc.edge_parameter(k);  // from edge.a
-        const double w = disc.edge_weights()(ge);
-        const Eigen::Vector2d x = disc.edge_points().col(ge);
-        const double g = value ? value(x) : 0.0;
-        const int ends[2] = {edge.a, edge.b};
-        const double hat[2] = {1.0 - s, s};
-        const auto nodes = tab.nodes(ge);
-        const auto p = tab.values(ge);
-        for (int e = 0; e < 2; ++e) {
-          auto& row = coef[ends[e]];
-          for (std::size_t j = 0; j < nodes.size(); ++j) {
-            if (p[j] == 0.0) continue;
-            for (int c = 0; c < 2; ++c)
-              if (direction[c] != 0.0)
-                row[velocity_dof(nodes[j], c)] += w * hat[e] * p[j] * direction[c];
-          }
-          auto& rl = rhs_len[ends[e]];
-          rl.first += w * hat[e] * g;
-          rl.second += w * hat[e];
-        }
-      }
-    }
+    const auto hats = hat_integrals(
+        mesh, disc, [&](const BoundarySegment& seg) { return select(X.col(seg.a), X.col(seg.b)); },
+        [&](int) { return direction; },
+        [&](int, const Eigen::Vector2d& x) { return value ? value(x) : 0.0; });
     int added = 0;
-    for (const auto& [node, dofs] : coef) {
-      const int nd = node;
-      const bool taken = std::any_of(rows_.begin(), rows_.end(), [&](const ConstraintRow& r) {
-        return r.node == nd && std::abs(r.direction.dot(direction)) > 1.0 - 1e-12;
-      });
-      if (taken) continue;
+    for (const auto& [node, h] : hats) {
+      if (has_parallel_row(node, direction)) continue;
       ++added;
-      ConstraintRow row;
-      row.direction = direction;
-      row.part = part;
-      row.node = node;
-      for (const auto& [dof, c] : dofs) {
-        row.dof.push_back(dof);
-        row.coef.push_back(c);
-      }
-      row.rhs = rhs_len[node].first;
-      row.force = rhs_len[node].second * direction;
-      rows_.push_back(std::move(row));
+      rows_.push_back(hat_row(h, part, node, direction));
     }
     return added;
+  }
+
+  /// A node already carries a multiplier for a direction parallel to e (two
+  /// would constrain the same velocity twice: a singular system).
+  bool has_parallel_row(int node, const Eigen::Vector2d& e) const {
+    return std::any_of(rows_.begin(), rows_.end(), [&](const ConstraintRow& r) {
+      return r.node == node && std::abs(r.direction.dot(e)) > 1.0 - 1e-12;
+    });
   }
 
   /// Fixes the pressure level: int p dOmega = mean * |Omega| (needed when the

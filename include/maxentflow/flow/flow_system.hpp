@@ -213,9 +213,7 @@ class FlowSystem {
     for (const auto& r : constraints_.rows()) entry_coef_.insert(entry_coef_.end(), r.coef.begin(), r.coef.end());
     layout_.fields = 3 * number_of_nodes();
     layout_.multipliers.clear();
-    for (const auto& r : constraints_.rows())
-      layout_.multipliers.push_back(
-          DofLayout::key(r.part, r.node, std::abs(r.direction.x()) >= std::abs(r.direction.y()) ? 0 : 1));
+    for (const auto& r : constraints_.rows()) layout_.multipliers.push_back(r.key());
   }
 
   void add_constraint_entries(Matrix& A, const std::vector<std::pair<int, int>>& pos) const {

@@ -7,18 +7,18 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <map>
-#include <tuple>
 #include <memory>
 #include <optional>
 #include <ostream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include <maxentflow/basis/maxent_basis.hpp>
-#include <maxentflow/contact/contact.hpp>
+#include <maxentflow/contact/contact_law.hpp>
+#include <maxentflow/contact/contact_set.hpp>
 #include <maxentflow/contact/rigid_tool.hpp>
 #include <maxentflow/core/error.hpp>
 #include <maxentflow/flow/constraints.hpp>
@@ -61,7 +61,7 @@ struct StepperParams {
   NonlinearSolverParams solver;
   ToolContact::params contact;
   int max_active_set_iterations = 12;
-  int max_retries = 4;          ///< dt halvings before a failed step stops the run
+  int max_retries = 4;          ///< dt halvings before a failed step stops the run (HalvingRetry)
   /// A node deeper than this * h in a tool fails the step. h here and in
   /// snap_tol is max(h_a, mean h): nodes crowding into a die corner get a
   /// small h_a that would make the tolerances vanish.
@@ -100,6 +100,21 @@ struct StepRecord {
   std::string note;  ///< retries and their reasons
 };
 
+/// Step control (as odeint's controlled steppers): how a step that failed is
+/// tried again. substeps(f) is the number of equal substeps of the attempt
+/// after f failures (1 for the first attempt), 0 to give up.
+template <class C>
+concept StepControl = requires(const C& c, int failures) {
+  { c.substeps(failures) } -> std::convertible_to<int>;
+};
+
+/// The default: a failed step is done again as 2, 4, ... substeps, up to
+/// max_retries halvings (StepperParams::max_retries).
+struct HalvingRetry {
+  int max_retries = 4;
+  int substeps(int failures) const { return failures <= max_retries ? 1 << failures : 0; }
+};
+
 /// A fixed velocity condition v . e = value on the boundary chosen by a selector,
 /// re-applied on each configuration (symmetry lines, the axis, a clamped edge).
 struct VelocityCondition {
@@ -111,15 +126,18 @@ struct VelocityCondition {
 
 /// The forming simulation: nodes that carry the material, rigid tools that move.
 /// Composes IntegrationMesh, MaxEntBasis, FlowDiscretization, FlowSystem<Material>
-/// (StabilizedFlowAssembler + constraints), ToolContact and NonlinearSolver<Linear>.
-template <ViscosityLaw Material, LinearSolverPolicy Linear = GmresSolver<>>
+/// (StabilizedFlowAssembler + constraints), a ContactSet (tools, their contact
+/// laws and active sets), NonlinearSolver<Linear> and a StepControl.
+template <ViscosityLaw Material, LinearSolverPolicy Linear = GmresSolver<>, StepControl Control = HalvingRetry>
 class Stepper {
  public:
   using Mesh = IntegrationMesh<Traits<2>>;
   using Basis = MaxEntBasis<2>;
 
   Stepper(Eigen::Matrix2Xd nodes, Material material, StepperParams prm)
-      : prm_(std::move(prm)), material_(std::move(material)), x_(std::move(nodes)) {
+      : Stepper(std::move(nodes), std::move(material), prm, default_control(prm)) {}
+  Stepper(Eigen::Matrix2Xd nodes, Material material, StepperParams prm, Control control)
+      : prm_(std::move(prm)), material_(std::move(material)), control_(std::move(control)), x_(std::move(nodes)) {
     require(prm_.dt > 0 && std::isfinite(prm_.dt), detail::cat("dt must be positive, got ", prm_.dt),
             "Stepper");
     const auto n = x_.cols();
@@ -131,10 +149,9 @@ class Stepper {
     contact_flag_.assign(static_cast<std::size_t>(n), 0);
   }
 
-  int add_tool(RigidTool tool) {
-    tools_.push_back(std::move(tool));
-    contacts_.emplace_back(prm_.contact);
-    return static_cast<int>(tools_.size()) - 1;
+  /// Adds a rigid tool with its contact law (any ContactLaw; frictionless by default).
+  int add_tool(RigidTool tool, AnyContactLaw law = Frictionless{}) {
+    return contact_.add_tool(std::move(tool), std::move(law), prm_.contact);
   }
   void add_velocity_condition(VelocityCondition c) { conditions_.push_back(std::move(c)); }
   void set_log(std::ostream* log) { log_ = log; }
@@ -145,7 +162,9 @@ class Stepper {
   const Eigen::Matrix2Xd& nodes() const { return x_; }
   double time() const { return time_; }
   int steps_done() const { return step_; }
-  const std::vector<RigidTool>& tools() const { return tools_; }
+  const std::vector<RigidTool>& tools() const { return contact_.tools(); }
+  const ContactSet& contact() const { return contact_; }
+  const Control& step_control() const { return control_; }
   const std::vector<StepRecord>& history() const { return history_; }
 
   // Fields of the last solved configuration (the one at the start of the last
@@ -189,8 +208,11 @@ class Stepper {
     rec.nodes = static_cast<int>(x_.cols());
     const State saved = save();
     std::string failures;
-    for (int level = 0; level <= prm_.max_retries; ++level) {
-      const int sub = 1 << level;
+    for (int failed = 0;; ++failed) {
+      const int sub = control_.substeps(failed);
+      if (sub <= 0)
+        throw Error(detail::cat("step ", step_ + 1, " failed after ", failed, " attempts:\n", failures),
+                    "Stepper::step");
       try {
         StepRecord r = rec;
         r.substeps = sub;
@@ -200,10 +222,6 @@ class Stepper {
       } catch (const Error& e) {
         restore(saved);
         failures += detail::cat("  attempt with dt/", sub, " failed: ", e.what(), "\n");
-        if (level == prm_.max_retries)
-          throw Error(detail::cat("step ", step_ + 1, " failed after ", prm_.max_retries,
-                                  " dt halvings:\n", failures),
-                      "Stepper::step");
       }
     }
     rec.note = failures;
@@ -237,6 +255,13 @@ class Stepper {
   }
 
  private:
+  static Control default_control(const StepperParams& prm) {
+    if constexpr (std::same_as<Control, HalvingRetry>)
+      return HalvingRetry{prm.max_retries};
+    else
+      return Control{};
+  }
+
   struct State {
     Eigen::Matrix2Xd x;
     Eigen::VectorXd V, V_last, strain;
@@ -244,11 +269,7 @@ class Stepper {
     std::vector<Eigen::Vector2d> tool_disp;
     double time, dt_last;
   };
-  State save() const {
-    State s{x_, V_, V_last_, strain_, v_nodal_, {}, time_, dt_last_};
-    for (const auto& t : tools_) s.tool_disp.push_back(t.displacement());
-    return s;
-  }
+  State save() const { return {x_, V_, V_last_, strain_, v_nodal_, contact_.displacements(), time_, dt_last_}; }
   void restore(const State& s) {
     x_ = s.x;
     V_ = s.V;
@@ -257,8 +278,7 @@ class Stepper {
     strain_ = s.strain;
     v_nodal_ = s.v_nodal;
     time_ = s.time;
-    for (std::size_t k = 0; k < tools_.size(); ++k)
-      tools_[k].translate(s.tool_disp[k] - tools_[k].displacement());
+    contact_.restore(s.tool_disp);
   }
 
   using clock = std::chrono::steady_clock;
@@ -266,120 +286,138 @@ class Stepper {
     return std::chrono::duration<double>(clock::now() - t).count();
   }
 
-  // Solves the configuration x_ for a step of dt, then moves nodes and tools.
+  // One configuration of the nodes: its integration mesh and free surface,
+  // max-ent basis, quadrature, and the basis at the nodes (for nodal fields).
+  struct Configuration {
+    std::shared_ptr<Mesh> mesh;
+    std::shared_ptr<Basis> basis;
+    std::shared_ptr<FlowDiscretization> disc;
+    BasisTable<2> at_nodes;
+  };
+
+  // The algorithm of one step (Eq. 18 and the section on the time stepping):
+  // configuration x_ -> flow solve with the contact active set -> loads and
+  // nodal fields -> nodes and tools move by dt.
   void advance(double dt, StepRecord& rec, bool first) {
+    const Configuration cfg = build_configuration(rec);
     auto t = clock::now();
-    auto mesh = std::make_shared<Mesh>(prm_.mesh);
-    mesh->build(x_);
-    if (h0_.size() != x_.cols()) h0_ = mesh->h();  // the rezoning's target spacing
+    FlowSystem<Material> sys(*cfg.mesh, *cfg.disc, material_, prm_.stabilization);
+    for (const auto& c : conditions_)
+      sys.constraints().add_velocity(*cfg.mesh, *cfg.disc, c.select, c.direction,
+                                     [v = c.value](const Eigen::Vector2d&) { return v; }, c.name);
+    Eigen::VectorXd X;
+    Eigen::Matrix2Xd v;
+    solve_with_active_set(cfg, sys, dt, rec, X, v);
+    rec.solve_seconds += since(t);
+    t = clock::now();
+    if (first) record_loads(sys, X, rec);
+    keep_solution(cfg, sys, X, v, dt);
+    move_nodes(cfg, X, v, dt);
+    rec.post_seconds += since(t);
+  }
+
+  // Mesh (Delaunay + alpha-shape), basis and quadrature of the nodes x_.
+  Configuration build_configuration(StepRecord& rec) {
+    auto t = clock::now();
+    Configuration cfg;
+    cfg.mesh = std::make_shared<Mesh>(prm_.mesh);
+    cfg.mesh->build(x_);
+    if (h0_.size() != x_.cols()) h0_ = cfg.mesh->h();  // the rezoning's target spacing
     rec.mesh_seconds += since(t);
     t = clock::now();
     typename Basis::params bp;
     bp.gamma = prm_.gamma;
     bp.tol0 = prm_.tol0;
-    auto basis = std::make_shared<Basis>(x_, mesh->h(), bp);
-    auto disc = std::make_shared<FlowDiscretization>(*mesh, *basis, prm_.geometry, prm_.discretization);
+    cfg.basis = std::make_shared<Basis>(x_, cfg.mesh->h(), bp);
+    cfg.disc = std::make_shared<FlowDiscretization>(*cfg.mesh, *cfg.basis, prm_.geometry, prm_.discretization);
     // Nodal gradients (strain rate) can fail at a sharp spike of the free
     // surface, where the one-sided limit's dual is unsolvable; the nodal
     // strain rate then comes from the Gauss points (nodal_fields).
-    BasisTable<2> at_nodes;
     try {
-      at_nodes = basis->evaluate(x_, true);
+      cfg.at_nodes = cfg.basis->evaluate(x_, true);
     } catch (const Error&) {
-      at_nodes = basis->evaluate(x_, false);
+      cfg.at_nodes = cfg.basis->evaluate(x_, false);
     }
     rec.basis_seconds += since(t);
-    t = clock::now();
-    FlowSystem<Material> sys(*mesh, *disc, material_, prm_.stabilization);
-    for (const auto& c : conditions_)
-      sys.constraints().add_velocity(*mesh, *disc, c.select, c.direction,
-                                     [v = c.value](const Eigen::Vector2d&) { return v; }, c.name);
-    std::vector<int> part(tools_.size());
-    for (std::size_t k = 0; k < tools_.size(); ++k) {
-      part[k] = sys.constraints().add_part("tool " + tools_[k].name());
-      contacts_[k].detect(*mesh, tools_[k], v_nodal_, dt);
-    }
-    // Start from the previous step's velocity and pressure coefficients.
+    return cfg;
+  }
+
+  // Solves the flow of a step of dt on cfg: contact rows of the active set,
+  // a nonlinear solve, an active-set update, until the set settles. X: the
+  // unknowns, v: the nodal velocity.
+  void solve_with_active_set(const Configuration& cfg, FlowSystem<Material>& sys, double dt, StepRecord& rec,
+                             Eigen::VectorXd& X, Eigen::Matrix2Xd& v) {
+    // sys.constraints() (non-const) marks the system's structure for an
+    // update: asked for anew wherever the rows change.
+    contact_.begin(sys.constraints(), *cfg.mesh, v_nodal_, dt);
+    const ConstraintSet& cs = std::as_const(sys).constraints();
     const int N = static_cast<int>(x_.cols());
     // One solver for the whole run: its linear policy keeps factorizations
     // that precondition the next steps' solves while the layout stays.
     if (!solver_) solver_ = std::make_unique<NonlinearSolver<Linear>>(prm_.solver);
     solver_->parameters() = prm_.solver;
-    Eigen::VectorXd X;
-    Eigen::Matrix2Xd v(2, N);
-    int as = 0;
-    for (;; ++as) {
-      for (std::size_t k = 0; k < tools_.size(); ++k) {
-        sys.constraints().clear_part(part[k]);
-        contacts_[k].add_rows(sys.constraints(), part[k], *mesh, *disc, *basis, tools_[k], dt);
-      }
-      // A re-solve after an active-set change starts from the last solve.
+    v.resize(2, N);
+    for (int as = 0;; ++as) {
+      contact_.add_rows(sys.constraints(), *cfg.mesh, *cfg.disc, *cfg.basis, dt);
+      // The first solve starts from the predictor, a re-solve after an
+      // active-set change from the last solve; multipliers from the last
+      // solve that had the same row.
       const Eigen::VectorXd start = as == 0 ? predicted(dt) : Eigen::VectorXd(X.head(3 * N));
       X = Eigen::VectorXd::Zero(sys.size());
       X.head(3 * N) = start;
-      const auto& rows = sys.constraints().rows();
-      for (std::size_t i = 0; i < rows.size(); ++i) {  // multipliers of the last solve, if any
-        const auto it = lambda_guess_.find(multiplier_key(rows[i]));
-        if (it != lambda_guess_.end()) X[3 * N + static_cast<Eigen::Index>(i)] = it->second;
+      contact_.warm_start(cs, X, 3 * N);
+      add_report(solver_->solve(sys, X), rec);
+      contact_.remember(cs, X, 3 * N);
+      nodal_velocity(cfg.at_nodes, X, v);
+      if (contact_.update(cs, X, N, x_, v, dt) == 0) {
+        rec.active_set_iterations += as + 1;
+        return;
       }
-      const SolveReport rep = solver_->solve(sys, X);
-      lambda_guess_.clear();
-      for (std::size_t i = 0; i < rows.size(); ++i)
-        lambda_guess_[multiplier_key(rows[i])] = X[3 * N + static_cast<Eigen::Index>(i)];
-      rec.picard += rep.picard;
-      rec.newton += rep.newton;
-      rec.linear_iterations += rep.linear_iterations;
-      rec.max_linear_iterations = std::max(rec.max_linear_iterations, rep.max_linear_iterations);
-      rec.preconditioner_updates += rep.preconditioner_updates;
-      rec.direct_fallbacks += rep.direct_fallbacks;
-      rec.assembly_seconds += rep.assembly_seconds;
-      rec.factorization_seconds += rep.factorization_seconds;
-      rec.linear_seconds += rep.solve_seconds;
-      nodal_velocity(at_nodes, X, v);
-      int changes = 0;
-      for (std::size_t k = 0; k < tools_.size(); ++k)
-        changes += contacts_[k].update(sys.constraints(), part[k], X, N, x_, v, tools_[k], dt);
-      if (changes == 0) break;
-      if (as + 1 >= prm_.max_active_set_iterations) {
-        std::string which;
-        for (std::size_t k = 0; k < tools_.size(); ++k)
-          for (int a : contacts_[k].changed_nodes())
-            which += detail::cat(" node ", a, " at (", x_(0, a), ", ", x_(1, a), ") now ",
-                                 contact_state(k, a), " on '", tools_[k].name(), "';");
+      if (as + 1 >= prm_.max_active_set_iterations)
         throw Error(detail::cat("the contact active set did not settle in ", as + 1,
-                                " iterations; last changes:", which),
+                                " iterations; last changes:", contact_.last_changes(x_)),
                     "Stepper::advance");
-      }
     }
-    rec.active_set_iterations += as + 1;
-    rec.solve_seconds += since(t);
-    t = clock::now();
-    // Post-processing on this configuration; forces at the step start.
-    if (first) {
-      rec.tool_force.assign(tools_.size(), Eigen::Vector2d::Zero());
-      rec.tool_stroke.assign(tools_.size(), 0.0);
-      for (std::size_t k = 0; k < tools_.size(); ++k) {
-        rec.tool_force[k] = sys.constraints().reaction(part[k], X, N);
-        rec.tool_stroke[k] = tools_[k].stroke();
-      }
-      rec.contact_nodes = 0;
-      std::fill(contact_flag_.begin(), contact_flag_.end(), 0);
-      for (std::size_t k = 0; k < tools_.size(); ++k)
-        for (const auto& c : contacts_[k].points())
-          if (c.active) {
-            contact_flag_[static_cast<std::size_t>(c.node)] = static_cast<int>(k) + 1;
-            ++rec.contact_nodes;
-          }
-    }
+  }
+  static void add_report(const SolveReport& rep, StepRecord& rec) {
+    rec.picard += rep.picard;
+    rec.newton += rep.newton;
+    rec.linear_iterations += rep.linear_iterations;
+    rec.max_linear_iterations = std::max(rec.max_linear_iterations, rep.max_linear_iterations);
+    rec.preconditioner_updates += rep.preconditioner_updates;
+    rec.direct_fallbacks += rep.direct_fallbacks;
+    rec.assembly_seconds += rep.assembly_seconds;
+    rec.factorization_seconds += rep.factorization_seconds;
+    rec.linear_seconds += rep.solve_seconds;
+  }
+
+  // The step's loads (on the configuration at its start) and contact nodes.
+  void record_loads(const FlowSystem<Material>& sys, const Eigen::VectorXd& X, StepRecord& rec) {
+    const int N = static_cast<int>(x_.cols());
+    rec.tool_force = contact_.reactions(sys.constraints(), X, N);
+    rec.tool_stroke = contact_.strokes();
+    rec.contact_nodes = contact_.flags(contact_flag_);
+  }
+
+  // The solution becomes the stepper's fields (and the predictor's history).
+  void keep_solution(const Configuration& cfg, const FlowSystem<Material>& sys, const Eigen::VectorXd& X,
+                     const Eigen::Matrix2Xd& v, double dt) {
+    const int N = static_cast<int>(x_.cols());
     X_ = X;
     V_last_ = V_;
     dt_last_ = dt;
     V_ = X.head(3 * N);
     v_nodal_ = v;
-    mesh_ = mesh;
-    basis_ = basis;
+    mesh_ = cfg.mesh;
+    basis_ = cfg.basis;
     x_solved_ = x_;
-    nodal_fields(at_nodes, X, dt, sys);
+    nodal_fields(cfg.at_nodes, X, dt, sys);
+  }
+
+  // Eq. (18): the nodes move with the material velocity at their position,
+  // the tools with theirs; then the contact and velocity conditions of the
+  // step are made exact on the new positions, and a penetration fails the step.
+  void move_nodes(const Configuration& cfg, const Eigen::VectorXd& X, const Eigen::Matrix2Xd& v, double dt) {
     // Nodes under a velocity condition end the step where it puts them: the
     // hat multipliers impose it on average, and a symmetry-axis node that
     // drifts past the selector's tolerance would lose its condition.
@@ -391,37 +429,19 @@ class Stepper {
     std::vector<Held> held;
     for (const auto& c : conditions_) {
       const Eigen::Vector2d e = c.direction.normalized();
-      for (const auto& seg : mesh->boundary_segments())
+      for (const auto& seg : cfg.mesh->boundary_segments())
         if (c.select(x_.col(seg.a), x_.col(seg.b)))
           for (int a : {seg.a, seg.b}) held.push_back({a, e, e.dot(x_.col(a)) + dt * c.value});
     }
-    if (prm_.predictor == Predictor::spatial) predict_spatial(*basis, X, v, dt);
-    // Eq. (18): the nodes move with the material velocity at their position.
+    if (prm_.predictor == Predictor::spatial) predict_spatial(*cfg.basis, X, v, dt);
     x_ += dt * v;
     for (const auto& h : held) x_.col(h.node) += (h.target - h.e.dot(x_.col(h.node))) * h.e;
     MAXENTFLOW_REQUIRE(x_.allFinite(), "node positions became NaN", "Stepper::advance");
-    for (auto& tool : tools_) tool.move(dt);
+    contact_.move(dt);
     time_ += dt;
-    const double h_mean = mesh->h().mean();
-    // Nodes in contact end the step on the tool (the condition of the step);
-    // the weak imposition leaves scatter (see snap_tol) that would make a flat
-    // contact face jagged and the max-ent dual stiff there.
-    for (std::size_t k = 0; k < tools_.size(); ++k)
-      for (const auto& c : contacts_[k].points()) {
-        if (!c.active) continue;
-        const ToolProjection pr = tools_[k].closest(x_.col(c.node));
-        if (std::abs(pr.gap) <= prm_.snap_tol * std::max(c.h, h_mean)) x_.col(c.node) -= pr.gap * pr.normal;
-      }
-    for (std::size_t k = 0; k < tools_.size(); ++k)
-      for (int a : mesh->boundary_nodes()) {
-        const double g = tools_[k].gap(x_.col(a));
-        MAXENTFLOW_REQUIRE(g >= -prm_.penetration_tol * std::max(mesh->h()(a), h_mean),
-                           detail::cat("node ", a, " at (", x_(0, a), ", ", x_(1, a), ") penetrates tool '",
-                                       tools_[k].name(), "' by ", -g, " (", -g / mesh->h()(a),
-                                       " h; it was ", contact_state(k, a), " in this step)"),
-                           "Stepper::advance");
-      }
-    rec.post_seconds += since(t);
+    const double h_mean = cfg.mesh->h().mean();
+    contact_.snap(x_, h_mean, prm_.snap_tol);
+    contact_.check_penetration(*cfg.mesh, x_, prm_.penetration_tol, h_mean);
   }
 
   // Where the solve of a step of dt starts (see Predictor).
@@ -518,9 +538,7 @@ class Stepper {
     const auto t = clock::now();
     Mesh mesh(prm_.mesh);
     mesh.build(x_);
-    const auto admissible = [this](const Eigen::Vector2d& p) {
-      return std::all_of(tools_.begin(), tools_.end(), [&](const RigidTool& k) { return k.gap(p) >= 0; });
-    };
+    const auto admissible = [this](const Eigen::Vector2d& p) { return contact_.admissible(p); };
     const NodeAdaptation a = plan_node_adaptation(mesh, h0_, prm_.adapt, admissible);
     rec.mesh_seconds += since(t);
     if (a.empty()) return;
@@ -534,12 +552,7 @@ class Stepper {
     d_nodal_ = a.transfer(d_nodal_.transpose()).transpose();
     h0_ = a.transfer(h0_.transpose()).transpose();
     contact_flag_.assign(static_cast<std::size_t>(x_.cols()), 0);
-    std::map<std::tuple<int, int, int>, double> guess;
-    for (const auto& [k, l] : lambda_guess_) {
-      const int b = map[static_cast<std::size_t>(std::get<1>(k))];
-      if (b >= 0) guess[{std::get<0>(k), b, std::get<2>(k)}] = l;
-    }
-    lambda_guess_.swap(guess);
+    contact_.renumber(map);
     rec.nodes_added = a.added();
     rec.nodes_removed = static_cast<int>(a.removed.size());
   }
@@ -547,27 +560,16 @@ class Stepper {
 
   StepperParams prm_;
   Material material_;
+  Control control_;
   Eigen::Matrix2Xd x_, x_solved_;
   Eigen::VectorXd V_, X_;
   Eigen::VectorXd V_last_;  // the solve before V_'s, for Predictor::extrapolated
   double dt_last_ = 0.0;    // its step
-  // The last multipliers by (part, node, main axis of the direction): the
-  // start of the next solve, so a warm-started Newton sees only the change.
-  static std::tuple<int, int, int> multiplier_key(const ConstraintRow& r) {
-    return {r.part, r.node, std::abs(r.direction.x()) >= std::abs(r.direction.y()) ? 0 : 1};
-  }
-  std::map<std::tuple<int, int, int>, double> lambda_guess_;
-  const char* contact_state(std::size_t tool, int node) const {
-    for (const auto& c : contacts_[tool].points())
-      if (c.node == node) return c.active ? "in contact" : "free";
-    return "not on the boundary";
-  }
   Eigen::Matrix2Xd v_nodal_;
   Eigen::VectorXd p_nodal_, d_nodal_, strain_;
   Eigen::VectorXd h0_;  // target spacing of the rezoning, per node
   std::vector<int> contact_flag_;
-  std::vector<RigidTool> tools_;
-  std::vector<ToolContact> contacts_;
+  ContactSet contact_;  // the tools, their laws and active sets
   std::vector<VelocityCondition> conditions_;
   std::vector<StepRecord> history_;
   std::shared_ptr<Mesh> mesh_;

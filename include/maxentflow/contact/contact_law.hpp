@@ -1,0 +1,119 @@
+// maxentflow: contact laws, the policy that says what a rigid tool imposes at
+// the workpiece nodes it touches (docs/architecture.md).
+#pragma once
+
+#include <concepts>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include <maxentflow/contact/rigid_tool.hpp>
+
+namespace maxentflow {
+
+/// One boundary node's state against one tool.
+struct ContactPoint {
+  int node = -1;
+  ToolProjection projection;
+  double h = 0.0;  ///< nodal spacing, the scale of the gap tolerances
+  bool active = false;
+  int releases = 0;  ///< times the active set released it this step (at most once)
+  int prev = -1, next = -1;  ///< neighbouring boundary nodes (indices into points())
+  /// The tool's tangent at the projection: the normal turned by +90 degrees.
+  Eigen::Vector2d tangent() const { return {-projection.normal.y(), projection.normal.x()}; }
+};
+
+/// A velocity condition a law imposes at an active contact node, weakly with a
+/// hat multiplier as Eq. (15): v . direction = target. Role 0 is the normal
+/// condition, which the active set reads (a tensile multiplier releases the
+/// node); role 1 a tangential one (sticking).
+struct ContactCondition {
+  Eigen::Vector2d direction = Eigen::Vector2d::Zero();
+  double target = 0.0;
+  int role = 0;
+};
+
+/// What a contact law supplies: a name and, for an active node of `tool` in a
+/// step of dt, the conditions its multipliers impose, the normal one first.
+/// Every active node of a tool gets the same roles in the same order.
+template <class L>
+concept ContactLaw = requires(const L& law, const ContactPoint& c, const RigidTool& tool, double dt,
+                              std::vector<ContactCondition>& out) {
+  { law.name() } -> std::convertible_to<std::string>;
+  law.conditions(c, tool, dt, out);
+};
+
+/// The normal condition of Eqs. (16)-(17) over a step: the gap at the step end
+/// is zero, g + dt (v - v_tool) . n = 0, so (v . n) = v_tool . n - g / dt (a
+/// small gap or penetration left by the last step is closed, errors do not add up).
+inline ContactCondition normal_contact(const ContactPoint& c, const RigidTool& tool, double dt) {
+  const Eigen::Vector2d& n = c.projection.normal;
+  return {n, tool.velocity().dot(n) - c.projection.gap / dt, 0};
+}
+
+/// The paper's law: no friction, only the normal velocity is constrained.
+struct Frictionless {
+  static std::string name() { return "frictionless"; }
+  void conditions(const ContactPoint& c, const RigidTool& tool, double dt,
+                  std::vector<ContactCondition>& out) const {
+    out.push_back(normal_contact(c, tool, dt));
+  }
+};
+
+/// Full sticking: the node moves with the tool, normal and tangential
+/// velocities both by multipliers (the tangential multiplier is the friction
+/// stress, unbounded).
+struct Sticking {
+  static std::string name() { return "sticking"; }
+  void conditions(const ContactPoint& c, const RigidTool& tool, double dt,
+                  std::vector<ContactCondition>& out) const {
+    out.push_back(normal_contact(c, tool, dt));
+    const Eigen::Vector2d t = c.tangent();
+    out.push_back({t, tool.velocity().dot(t), 1});
+  }
+};
+
+static_assert(ContactLaw<Frictionless> && ContactLaw<Sticking>);
+
+/// Any ContactLaw, held by value semantics so that each tool of one simulation
+/// can carry its own law type (the concept is checked where a law is given).
+class AnyContactLaw {
+ public:
+  AnyContactLaw() : AnyContactLaw(Frictionless{}) {}
+  template <ContactLaw L>
+    requires(!std::same_as<std::decay_t<L>, AnyContactLaw>)
+  AnyContactLaw(L law)  // NOLINT(google-explicit-constructor): a law converts to "any law"
+      : self_(std::make_shared<const Model<L>>(std::move(law))) {}
+
+  std::string name() const { return self_->name(); }
+  void conditions(const ContactPoint& c, const RigidTool& tool, double dt,
+                  std::vector<ContactCondition>& out) const {
+    self_->conditions(c, tool, dt, out);
+  }
+
+ private:
+  struct Interface {
+    virtual ~Interface() = default;
+    virtual std::string name() const = 0;
+    virtual void conditions(const ContactPoint&, const RigidTool&, double,
+                            std::vector<ContactCondition>&) const = 0;
+  };
+  template <class L>
+  struct Model final : Interface {
+    explicit Model(L l) : law(std::move(l)) {}
+    std::string name() const override { return law.name(); }
+    void conditions(const ContactPoint& c, const RigidTool& tool, double dt,
+                    std::vector<ContactCondition>& out) const override {
+      law.conditions(c, tool, dt, out);
+    }
+    L law;
+  };
+  std::shared_ptr<const Interface> self_;  // immutable: copies share it
+};
+
+static_assert(ContactLaw<AnyContactLaw>);
+
+}  // namespace maxentflow

@@ -1,0 +1,200 @@
+// maxentflow: the rigid tools of a simulation with their contact state, the
+// part of the stepper that owns everything contact (docs/architecture.md).
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <map>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include <maxentflow/basis/maxent_basis.hpp>
+#include <maxentflow/contact/contact.hpp>
+#include <maxentflow/contact/contact_law.hpp>
+#include <maxentflow/contact/rigid_tool.hpp>
+#include <maxentflow/core/error.hpp>
+#include <maxentflow/flow/constraints.hpp>
+#include <maxentflow/flow/flow_discretization.hpp>
+
+namespace maxentflow {
+
+/// The tools, each with its contact law and active set, and the multipliers'
+/// warm start across configurations. Per configuration: begin() (parts,
+/// detection), then add_rows() / update() until the active set settles, then
+/// remember() the multipliers; reactions(), snap() and check_penetration()
+/// for the post-processing; move() the tools at the end of the step.
+class ContactSet {
+ public:
+  using Mesh = IntegrationMesh<Traits<2>>;
+
+  explicit ContactSet(ToolContact::params prm = {}) : prm_(prm) {}
+
+  /// Adds a tool with its law (and its own detection and release tolerances);
+  /// returns its index.
+  int add_tool(RigidTool tool, AnyContactLaw law = Frictionless{}) { return add_tool(std::move(tool), std::move(law), prm_); }
+  int add_tool(RigidTool tool, AnyContactLaw law, ToolContact::params prm) {
+    tools_.push_back(std::move(tool));
+    entries_.push_back({ToolContact(prm), std::move(law), -1});
+    return static_cast<int>(tools_.size()) - 1;
+  }
+  std::size_t size() const { return tools_.size(); }
+  const AnyContactLaw& law(std::size_t k) const { return entries_[k].law; }
+  /// The tools, in the order they were added.
+  const std::vector<RigidTool>& tools() const { return tools_; }
+
+  /// A new configuration: one constraint part per tool ("tool <name>"), each
+  /// boundary node projected on each tool, the first active set from the gap
+  /// and the velocity guess (2 x N; may be empty).
+  void begin(ConstraintSet& cs, const Mesh& mesh, const Eigen::Matrix2Xd& v_guess, double dt) {
+    for (std::size_t k = 0; k < tools_.size(); ++k) {
+      entries_[k].part = cs.add_part("tool " + tools_[k].name());
+      entries_[k].contact.detect(mesh, tools_[k], v_guess, dt);
+    }
+  }
+
+  /// Replaces the tools' rows in `cs` with those of the current active sets.
+  void add_rows(ConstraintSet& cs, const Mesh& mesh, const FlowDiscretization& disc,
+                const MaxEntBasis<2>& basis, double dt) const {
+    for (std::size_t k = 0; k < tools_.size(); ++k) {
+      const Entry& e = entries_[k];
+      cs.clear_part(e.part);
+      e.contact.add_rows(cs, e.part, mesh, disc, basis, tools_[k], e.law, dt);
+    }
+  }
+
+  /// Multipliers of the rows of `cs` (after the `fields` field unknowns of X)
+  /// from the last solve that had a row of the same key: a warm-started
+  /// Newton then sees only the change.
+  void warm_start(const ConstraintSet& cs, Eigen::VectorXd& X, int fields) const {
+    const auto& rows = cs.rows();
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      const auto it = lambda_.find(rows[i].key());
+      if (it != lambda_.end()) X[fields + static_cast<Eigen::Index>(i)] = it->second;
+    }
+  }
+  /// Keeps the multipliers of a solve for warm_start().
+  void remember(const ConstraintSet& cs, const Eigen::VectorXd& X, int fields) {
+    lambda_.clear();
+    const auto& rows = cs.rows();
+    for (std::size_t i = 0; i < rows.size(); ++i)
+      lambda_[rows[i].key()] = X[fields + static_cast<Eigen::Index>(i)];
+  }
+
+  /// Active-set update after a solve (ToolContact::update on every tool),
+  /// with x the nodes and v their velocity (2 x N). Returns the changes.
+  int update(const ConstraintSet& cs, const Eigen::VectorXd& X, int n_nodes, const Eigen::Matrix2Xd& x,
+             const Eigen::Matrix2Xd& v, double dt) {
+    int changes = 0;
+    for (std::size_t k = 0; k < tools_.size(); ++k)
+      changes += entries_[k].contact.update(cs, entries_[k].part, X, n_nodes, x, v, tools_[k], dt);
+    return changes;
+  }
+  /// The nodes the last update() changed, for an error message.
+  std::string last_changes(const Eigen::Matrix2Xd& x) const {
+    std::string which;
+    for (std::size_t k = 0; k < tools_.size(); ++k)
+      for (int a : entries_[k].contact.changed_nodes())
+        which += detail::cat(" node ", a, " at (", x(0, a), ", ", x(1, a), ") now ", state(k, a), " on '",
+                             tools_[k].name(), "';");
+    return which;
+  }
+
+  /// The force the workpiece exerts on each tool (from the multipliers).
+  std::vector<Eigen::Vector2d> reactions(const ConstraintSet& cs, const Eigen::VectorXd& X, int n_nodes) const {
+    std::vector<Eigen::Vector2d> f;
+    for (const auto& e : entries_) f.push_back(cs.reaction(e.part, X, n_nodes));
+    return f;
+  }
+  std::vector<double> strokes() const {
+    std::vector<double> s;
+    for (const auto& t : tools_) s.push_back(t.stroke());
+    return s;
+  }
+  /// flag[a] = k + 1 for a node active on tool k, else 0; returns the active count.
+  int flags(std::vector<int>& flag) const {
+    std::fill(flag.begin(), flag.end(), 0);
+    int count = 0;
+    for (std::size_t k = 0; k < tools_.size(); ++k)
+      for (const auto& c : entries_[k].contact.points())
+        if (c.active) {
+          flag[static_cast<std::size_t>(c.node)] = static_cast<int>(k) + 1;
+          ++count;
+        }
+    return count;
+  }
+
+  /// Active nodes within snap_tol * max(h_a, h_mean) of their tool end the step
+  /// on it: the weak imposition leaves scatter that would make a flat contact
+  /// face jagged and the max-ent dual stiff there (StepperParams::snap_tol).
+  void snap(Eigen::Matrix2Xd& x, double h_mean, double snap_tol) const {
+    for (std::size_t k = 0; k < tools_.size(); ++k)
+      for (const auto& c : entries_[k].contact.points()) {
+        if (!c.active) continue;
+        const ToolProjection pr = tools_[k].closest(x.col(c.node));
+        if (std::abs(pr.gap) <= snap_tol * std::max(c.h, h_mean)) x.col(c.node) -= pr.gap * pr.normal;
+      }
+  }
+  /// Throws if a boundary node of `mesh` at its position in x is deeper than
+  /// tol * max(h_a, h_mean) in a tool.
+  void check_penetration(const Mesh& mesh, const Eigen::Matrix2Xd& x, double tol, double h_mean) const {
+    for (std::size_t k = 0; k < tools_.size(); ++k)
+      for (int a : mesh.boundary_nodes()) {
+        const double g = tools_[k].gap(x.col(a));
+        MAXENTFLOW_REQUIRE(g >= -tol * std::max(mesh.h()(a), h_mean),
+                           detail::cat("node ", a, " at (", x(0, a), ", ", x(1, a), ") penetrates tool '",
+                                       tools_[k].name(), "' by ", -g, " (", -g / mesh.h()(a),
+                                       " h; it was ", state(k, a), " in this step)"),
+                           "ContactSet::check_penetration");
+      }
+  }
+  /// True if p is outside every tool (where rezoning may put a node).
+  bool admissible(const Eigen::Vector2d& p) const {
+    return std::all_of(tools_.begin(), tools_.end(), [&](const RigidTool& t) { return t.gap(p) >= 0; });
+  }
+
+  void move(double dt) {
+    for (auto& t : tools_) t.move(dt);
+  }
+  std::vector<Eigen::Vector2d> displacements() const {
+    std::vector<Eigen::Vector2d> d;
+    for (const auto& t : tools_) d.push_back(t.displacement());
+    return d;
+  }
+  /// Puts the tools back where displacements() saw them (a failed step).
+  void restore(const std::vector<Eigen::Vector2d>& d) {
+    for (std::size_t k = 0; k < tools_.size(); ++k) tools_[k].translate(d[k] - tools_[k].displacement());
+  }
+  /// Node renumbering (rezoning): old node a is old_to_new[a] (-1: removed).
+  void renumber(const std::vector<int>& old_to_new) {
+    std::map<std::uint64_t, double> moved;
+    for (const auto& [k, l] : lambda_) {
+      const int b = old_to_new[static_cast<std::size_t>(DofLayout::key_node(k))];
+      if (b >= 0) moved[DofLayout::with_node(k, b)] = l;
+    }
+    lambda_.swap(moved);
+  }
+
+  /// "in contact", "free" or "not on the boundary" (node a on tool k, this configuration).
+  const char* state(std::size_t k, int a) const {
+    for (const auto& c : entries_[k].contact.points())
+      if (c.node == a) return c.active ? "in contact" : "free";
+    return "not on the boundary";
+  }
+
+ private:
+  struct Entry {
+    ToolContact contact;
+    AnyContactLaw law;
+    int part;  // its constraint part in the current configuration
+  };
+  ToolContact::params prm_;
+  std::vector<RigidTool> tools_;
+  std::vector<Entry> entries_;  // per tool
+  std::map<std::uint64_t, double> lambda_;  // last multipliers by row key
+};
+
+}  // namespace maxentflow
