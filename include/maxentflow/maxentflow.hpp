@@ -1,7 +1,9 @@
 // maxentflow: umbrella header (every component).
 #pragma once
 
+#include <maxentflow/core/dof_layout.hpp>
 #include <maxentflow/core/error.hpp>
+#include <maxentflow/core/linearization.hpp>
 #include <maxentflow/core/parallel.hpp>
 #include <maxentflow/core/traits.hpp>
 #include <maxentflow/basis/basis_table.hpp>

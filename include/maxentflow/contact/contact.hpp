@@ -128,7 +128,7 @@ class ToolContact {
     double lmax = 0.0;
     for (std::size_t i = 0; i < cs.rows().size(); ++i)
       if (cs.rows()[i].part == part && cs.rows()[i].role == 0) {
-        const double l = X[3 * n_nodes + static_cast<Eigen::Index>(i)];
+        const double l = X[DofLayout::fields_of(n_nodes) + static_cast<Eigen::Index>(i)];
         lambda[cs.rows()[i].node] = l;
         lmax = std::max(lmax, std::abs(l));
       }

@@ -2,8 +2,11 @@
 // made for one configuration can be applied to the next.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
+
+#include <Eigen/Core>
 
 namespace maxentflow {
 
@@ -14,6 +17,15 @@ namespace maxentflow {
 struct DofLayout {
   int fields = 0;
   std::vector<std::uint64_t> multipliers;
+
+  /// Field unknowns per node, interleaved: v_x, v_y (v_r, v_z), p.
+  static constexpr int per_node = 3;
+  static constexpr int velocity(int node, int axis) { return per_node * node + axis; }
+  static constexpr int pressure(int node) { return per_node * node + 2; }
+  /// The field unknowns of `nodes` nodes; the multipliers follow them.
+  static constexpr int fields_of(int nodes) { return per_node * nodes; }
+  /// The position of multiplier i.
+  int multiplier(int i) const { return fields + i; }
 
   int size() const { return fields + static_cast<int>(multipliers.size()); }
   bool operator==(const DofLayout&) const = default;
@@ -34,5 +46,16 @@ struct DofLayout {
     return (k & ~mask) | (static_cast<std::uint64_t>(static_cast<std::uint32_t>(node + 1)) << 2);
   }
 };
+
+/// sum_b p_b X_b: the fields (v_x, v_y, p) at a point from the basis values
+/// p (at the nodes `nodes`) there and the unknowns X (the max-ent basis is not
+/// interpolating inside, so the coefficients are not the nodal values).
+template <class Nodes, class Values>
+Eigen::Vector3d interpolate_fields(const Nodes& nodes, const Values& p, const Eigen::VectorXd& X) {
+  Eigen::Vector3d f = Eigen::Vector3d::Zero();
+  for (std::size_t j = 0; j < static_cast<std::size_t>(nodes.size()); ++j)
+    f += p[j] * X.segment<DofLayout::per_node>(DofLayout::per_node * nodes[j]);
+  return f;
+}
 
 }  // namespace maxentflow

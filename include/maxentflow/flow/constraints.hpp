@@ -215,7 +215,7 @@ class ConstraintSet {
   Eigen::Vector2d reaction(int part, const Eigen::VectorXd& X, int n_nodes) const {
     Eigen::Vector2d f = Eigen::Vector2d::Zero();
     for (std::size_t i = 0; i < rows_.size(); ++i)
-      if (rows_[i].part == part) f += X[3 * n_nodes + static_cast<Eigen::Index>(i)] * rows_[i].force;
+      if (rows_[i].part == part) f += X[DofLayout::fields_of(n_nodes) + static_cast<Eigen::Index>(i)] * rows_[i].force;
     return f;
   }
 

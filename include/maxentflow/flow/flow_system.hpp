@@ -34,7 +34,7 @@ class FlowSystem {
   FlowSystem(const Mesh& mesh, const FlowDiscretization& disc, Material material,
              typename Assembler::params prm = {})
       : mesh_(&mesh), disc_(&disc), assembler_(disc, std::move(material), prm),
-        traction_(Eigen::VectorXd::Zero(3 * disc.number_of_nodes())) {
+        traction_(Eigen::VectorXd::Zero(DofLayout::fields_of(disc.number_of_nodes()))) {
     pattern_.build_adjacency(disc);
     structure_dirty_ = true;
   }
@@ -149,7 +149,7 @@ class FlowSystem {
     update_structure();
     require(X.size() == pattern_.size() && v.size() == pattern_.size(),
             detail::cat("X and v need ", pattern_.size(), " entries"), "FlowSystem::apply_tangent");
-    const int nv = 3 * number_of_nodes();
+    const int nv = DofLayout::fields_of(number_of_nodes());
     if (!(linearized_at_.size() == X.size() && linearized_at_ == X)) {  // a new X: new point operators
       assembler_.linearize(X);
       linearized_at_ = X;
@@ -175,7 +175,7 @@ class FlowSystem {
 
   /// |momentum residual| / force scale (|internal force| + |traction|) of the last evaluation.
   double relative_residual(const Eigen::VectorXd& R) const {
-    const int nv = 3 * number_of_nodes();
+    const int nv = DofLayout::fields_of(number_of_nodes());
     double r2 = 0.0;
     for (int k = 0; k < nv; ++k)
       if (k % 3 != 2) r2 += R[k] * R[k];
@@ -185,7 +185,7 @@ class FlowSystem {
   double velocity_norm(const Eigen::VectorXd& X) const {
     double m = 0.0;
     for (int a = 0; a < number_of_nodes(); ++a)
-      m = std::max({m, std::abs(X[3 * a]), std::abs(X[3 * a + 1])});
+      m = std::max({m, std::abs(X[velocity_dof(a, 0)]), std::abs(X[velocity_dof(a, 1)])});
     return m;
   }
   double force_scale() const { return force_scale_; }
@@ -193,7 +193,7 @@ class FlowSystem {
   /// Gauss-point fields at X (strain rate, viscosity, tau, pressure, div v).
   FlowPointState point_state(const Eigen::VectorXd& X) const {
     FlowPointState s;
-    Eigen::VectorXd R = Eigen::VectorXd::Zero(3 * number_of_nodes());
+    Eigen::VectorXd R = Eigen::VectorXd::Zero(DofLayout::fields_of(number_of_nodes()));
     assembler_.assemble(X, Linearization::picard, pattern_, nullptr, R, nullptr, &s);
     return s;
   }
@@ -211,7 +211,7 @@ class FlowSystem {
     entry_pos_ = constraint_positions(pattern_.matrix());
     entry_coef_.clear();
     for (const auto& r : constraints_.rows()) entry_coef_.insert(entry_coef_.end(), r.coef.begin(), r.coef.end());
-    layout_.fields = 3 * number_of_nodes();
+    layout_.fields = DofLayout::fields_of(number_of_nodes());
     layout_.multipliers.clear();
     for (const auto& r : constraints_.rows()) layout_.multipliers.push_back(r.key());
   }
@@ -226,7 +226,7 @@ class FlowSystem {
 
   // Value positions of each constraint coefficient in A (both blocks), in row order.
   std::vector<std::pair<int, int>> constraint_positions(const Matrix& A) const {
-    const int nv = 3 * number_of_nodes();
+    const int nv = DofLayout::fields_of(number_of_nodes());
     std::vector<std::pair<int, int>> pos;
     const int* outer = A.outerIndexPtr();
     const int* inner = A.innerIndexPtr();
@@ -250,7 +250,7 @@ class FlowSystem {
   }
 
   void residual_impl(const Eigen::VectorXd& X, Linearization kind, Matrix* A, Eigen::VectorXd& R) {
-    const int nv = 3 * number_of_nodes();
+    const int nv = DofLayout::fields_of(number_of_nodes());
     R.setZero(pattern_.size());
     Eigen::VectorXd fint = Eigen::VectorXd::Zero(nv);
     assembler_.assemble(X, kind, pattern_, A, R, &fint);

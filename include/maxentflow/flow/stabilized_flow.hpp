@@ -12,22 +12,20 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 
+#include <maxentflow/core/dof_layout.hpp>
 #include <maxentflow/core/error.hpp>
+#include <maxentflow/core/linearization.hpp>
 #include <maxentflow/core/parallel.hpp>
 #include <maxentflow/flow/flow_discretization.hpp>
 #include <maxentflow/material/norton_hoff.hpp>
 
 namespace maxentflow {
 
-/// Picard (direct iteration: mu and tau frozen at the current iterate) or
-/// Newton (consistent tangent, including d tau / d v).
-enum class Linearization { picard, newton };
-
 /// Unknowns: node a has v_x = X[3a], v_y = X[3a+1] (v_r, v_z axisymmetric) and
 /// the pressure coefficient P_a = X[3a+2] (the same max-ent basis, Eq. 19);
 /// Lagrange multipliers follow from 3N on.
-inline int velocity_dof(int a, int c) { return 3 * a + c; }
-inline int pressure_dof(int a) { return 3 * a + 2; }
+inline int velocity_dof(int a, int c) { return DofLayout::velocity(a, c); }
+inline int pressure_dof(int a) { return DofLayout::pressure(a); }
 
 /// The sparse structure of the saddle system: every pair of nodes that share a
 /// triangle's U_T gives a dense 3x3 block (v_x, v_y, p); multiplier columns and

@@ -32,6 +32,23 @@ concept PreconditionedLinearSolver =
       { s.last_iterations() } -> std::convertible_to<int>;
     };
 
+/// A Krylov policy NonlinearSolver can steer: a tolerance per solve (the
+/// inexact-Newton forcing term), a solve that may not fall back to a direct
+/// LU (so that a stale preconditioner is rebuilt first), and what the last
+/// solve did. A PreconditionedLinearSolver without these is solved to its own
+/// tolerance, every time with its fallback.
+template <class S>
+concept SteerableKrylovSolver =
+    PreconditionedLinearSolver<S> &&
+    requires(S& s, const S& cs, const Eigen::SparseMatrix<double, Eigen::ColMajor, int>& A,
+             const Eigen::VectorXd& b) {
+      s.set_tolerance(1.0);
+      { s.solve(A, b, false) } -> std::convertible_to<Eigen::VectorXd>;
+      { cs.converged() } -> std::convertible_to<bool>;
+      { cs.last_residual() } -> std::convertible_to<double>;
+      { cs.direct_fallbacks() } -> std::convertible_to<int>;
+    };
+
 /// A Krylov policy that can also keep a direct LU of a full system matrix
 /// and precondition solves by it, with the matrix-vector product given as an
 /// operator (so that Newton's tangent need not be assembled).
@@ -325,6 +342,7 @@ class GmresSolver {
 };
 
 static_assert(PreconditionedLinearSolver<GmresSolver<>>);
+static_assert(SteerableKrylovSolver<GmresSolver<>>);
 static_assert(KeptLuLinearSolver<GmresSolver<>>);
 
 }  // namespace maxentflow

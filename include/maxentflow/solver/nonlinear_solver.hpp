@@ -15,9 +15,11 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/SparseCore>
 
+#include <maxentflow/core/dof_layout.hpp>
 #include <maxentflow/core/error.hpp>
-#include <maxentflow/flow/stabilized_flow.hpp>
+#include <maxentflow/core/linearization.hpp>
 #include <maxentflow/solver/krylov_solver.hpp>
 #include <maxentflow/solver/linear_solver.hpp>
 
@@ -189,7 +191,7 @@ class NonlinearSolver {
                               ? Linearization::newton
                               : Linearization::picard;
     int fallbacks_before = 0;
-    if constexpr (requires { linear_.direct_fallbacks(); }) fallbacks_before = linear_.direct_fallbacks();
+    if constexpr (SteerableKrylovSolver<Linear>) fallbacks_before = linear_.direct_fallbacks();
     bool full_newton_step = false;
     double increment = std::numeric_limits<double>::infinity();
     Eigen::VectorXd R, Rtry, Xtry, dx;
@@ -238,7 +240,7 @@ class NonlinearSolver {
                            analyzed_size_ == n && prm_.preconditioner_refresh > 0 &&
                            rate_ <= prm_.preconditioner_refresh * fresh_rate_;
         if (!kept) refresh();
-        if constexpr (requires { linear_.set_tolerance(1.0); }) {
+        if constexpr (SteerableKrylovSolver<Linear>) {
           const double eta = std::max(res, 0.5 * prm_.residual_tol / std::max(res, 1e-300));
           const double cap = kind == Linearization::picard ? prm_.eta_picard : prm_.eta_max;
           linear_.set_tolerance(std::clamp(eta, prm_.eta_min, cap));
@@ -246,7 +248,7 @@ class NonlinearSolver {
         t0 = clock::now();
         // A kept preconditioner that GMRES cannot converge with is rebuilt
         // before the (costly) direct fallback is tried.
-        if constexpr (requires { linear_.solve(A_, R, false); linear_.converged(); }) {
+        if constexpr (SteerableKrylovSolver<Linear>) {
           dx = linear_.solve(A_, -R, !kept);
           if (kept && !linear_.converged()) {
             rep.linear_iterations += linear_.last_iterations();
@@ -262,7 +264,7 @@ class NonlinearSolver {
         linear_its = linear_.last_iterations();
         rep.linear_iterations += linear_its;
         rep.max_linear_iterations = std::max(rep.max_linear_iterations, linear_its);
-        if constexpr (requires { linear_.last_residual(); }) {
+        if constexpr (SteerableKrylovSolver<Linear>) {
           const double decades = -std::log10(std::clamp(linear_.last_residual(), 1e-16, 0.5));
           rate_ = linear_its / decades;
           if (fresh_rate_ < 0) fresh_rate_ = std::max(rate_, 1.0);
@@ -329,7 +331,7 @@ class NonlinearSolver {
         phase = Linearization::newton;
     }
     picard_since_switch_ = 0;
-    if constexpr (requires { linear_.direct_fallbacks(); })
+    if constexpr (SteerableKrylovSolver<Linear>)
       rep.direct_fallbacks = linear_.direct_fallbacks() - fallbacks_before;
     if (!rep.converged)
       throw Error(detail::cat("no convergence in ", prm_.max_iterations, " iterations (residual ",

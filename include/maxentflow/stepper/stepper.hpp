@@ -141,7 +141,7 @@ class Stepper {
     require(prm_.dt > 0 && std::isfinite(prm_.dt), detail::cat("dt must be positive, got ", prm_.dt),
             "Stepper");
     const auto n = x_.cols();
-    V_ = Eigen::VectorXd::Zero(3 * n);
+    V_ = Eigen::VectorXd::Zero(DofLayout::fields_of(static_cast<int>(n)));
     v_nodal_ = Eigen::Matrix2Xd::Zero(2, n);
     p_nodal_ = Eigen::VectorXd::Zero(n);
     d_nodal_ = Eigen::VectorXd::Zero(n);
@@ -185,12 +185,8 @@ class Stepper {
     require(basis_ != nullptr, "no step solved yet", "Stepper::fields_at");
     const BasisTable<2> t = basis_->evaluate(points, false);
     Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, points.cols());
-    for (Eigen::Index i = 0; i < points.cols(); ++i) {
-      const auto nodes = t.nodes(static_cast<int>(i));
-      const auto p = t.values(static_cast<int>(i));
-      for (std::size_t j = 0; j < nodes.size(); ++j)
-        for (int c = 0; c < 3; ++c) f(c, i) += p[j] * X_[3 * nodes[j] + c];
-    }
+    for (Eigen::Index i = 0; i < points.cols(); ++i)
+      f.col(i) = interpolate_fields(t.nodes(static_cast<int>(i)), t.values(static_cast<int>(i)), X_);
     return f;
   }
   /// The unknowns of the last solve (velocity and pressure coefficients, multipliers).
@@ -362,12 +358,13 @@ class Stepper {
       // The first solve starts from the predictor, a re-solve after an
       // active-set change from the last solve; multipliers from the last
       // solve that had the same row.
-      const Eigen::VectorXd start = as == 0 ? predicted(dt) : Eigen::VectorXd(X.head(3 * N));
+      const int nf = DofLayout::fields_of(N);
+      const Eigen::VectorXd start = as == 0 ? predicted(dt) : Eigen::VectorXd(X.head(nf));
       X = Eigen::VectorXd::Zero(sys.size());
-      X.head(3 * N) = start;
-      contact_.warm_start(cs, X, 3 * N);
+      X.head(nf) = start;
+      contact_.warm_start(cs, X, nf);
       add_report(solver_->solve(sys, X), rec);
-      contact_.remember(cs, X, 3 * N);
+      contact_.remember(cs, X, nf);
       nodal_velocity(cfg.at_nodes, X, v);
       if (contact_.update(cs, X, N, x_, v, dt) == 0) {
         rec.active_set_iterations += as + 1;
@@ -406,7 +403,7 @@ class Stepper {
     X_ = X;
     V_last_ = V_;
     dt_last_ = dt;
-    V_ = X.head(3 * N);
+    V_ = X.head(DofLayout::fields_of(N));
     v_nodal_ = v;
     mesh_ = cfg.mesh;
     basis_ = cfg.basis;
@@ -453,13 +450,7 @@ class Stepper {
   // v(x_a) = sum_b p_b(x_a) V_b: max-ent is not interpolating inside, so the
   // coefficients are not the nodal values.
   static void nodal_velocity(const BasisTable<2>& tab, const Eigen::VectorXd& X, Eigen::Matrix2Xd& v) {
-    for (int a = 0; a < tab.size(); ++a) {
-      const auto nodes = tab.nodes(a);
-      const auto p = tab.values(a);
-      Eigen::Vector2d s = Eigen::Vector2d::Zero();
-      for (std::size_t j = 0; j < nodes.size(); ++j) s += p[j] * X.segment<2>(3 * nodes[j]);
-      v.col(a) = s;
-    }
+    for (int a = 0; a < tab.size(); ++a) v.col(a) = interpolate_fields(tab.nodes(a), tab.values(a), X).head<2>();
   }
 
   void nodal_fields(const BasisTable<2>& tab, const Eigen::VectorXd& X, double dt,
@@ -480,11 +471,7 @@ class Stepper {
         }
       }
       for (int a = 0; a < tab.size(); ++a) {
-        double pr = 0;
-        const auto nodes = tab.nodes(a);
-        const auto p = tab.values(a);
-        for (std::size_t j = 0; j < nodes.size(); ++j) pr += p[j] * X[3 * nodes[j] + 2];
-        p_nodal_[a] = pr;
+        p_nodal_[a] = interpolate_fields(tab.nodes(a), tab.values(a), X)[2];
         d_nodal_[a] = wsum[a] > 0 ? sum[a] / wsum[a] : 0.0;
         strain_[a] += d_nodal_[a] * dt;
       }
@@ -499,10 +486,10 @@ class Stepper {
       double vr = 0;
       for (std::size_t j = 0; j < nodes.size(); ++j) {
         const int b = nodes[j];
-        pr += p[j] * X[3 * b + 2];
-        vr += p[j] * X[3 * b];
-        L.row(0) += X[3 * b] * g.col(static_cast<Eigen::Index>(j)).transpose();
-        L.row(1) += X[3 * b + 1] * g.col(static_cast<Eigen::Index>(j)).transpose();
+        pr += p[j] * X[DofLayout::pressure(b)];
+        vr += p[j] * X[DofLayout::velocity(b, 0)];
+        L.row(0) += X[DofLayout::velocity(b, 0)] * g.col(static_cast<Eigen::Index>(j)).transpose();
+        L.row(1) += X[DofLayout::velocity(b, 1)] * g.col(static_cast<Eigen::Index>(j)).transpose();
       }
       const Eigen::Matrix2d D = 0.5 * (L + L.transpose());
       double dtt = 0.0;  // hoop rate v_r / r; on the axis its limit dv_r/dr
@@ -524,10 +511,9 @@ class Stepper {
       const Eigen::Vector2d y = x_.col(a) + dt * v.col(a);
       try {
         const auto pv = basis.evaluate(y, false);
-        Eigen::Vector3d f = Eigen::Vector3d::Zero();
-        for (std::size_t j = 0; j < pv.node.size(); ++j) f += pv.p[j] * X.segment<3>(3 * pv.node[j]);
-        V_.segment<2>(3 * a) += f.head<2>() - v.col(a);
-        V_[3 * a + 2] += f[2] - p_nodal_[a];
+        const Eigen::Vector3d f = interpolate_fields(pv.node, pv.p, X);
+        V_.segment<2>(DofLayout::velocity(a, 0)) += f.head<2>() - v.col(a);
+        V_[DofLayout::pressure(a)] += f[2] - p_nodal_[a];
       } catch (const Error&) {
       }
     }
@@ -544,8 +530,9 @@ class Stepper {
     if (a.empty()) return;
     const std::vector<int> map = a.old_to_new(x_.cols());
     x_ = a.positions(x_);
-    V_ = a.transfer_interleaved(V_, 3);
-    if (V_last_.size() == 3 * static_cast<Eigen::Index>(map.size())) V_last_ = a.transfer_interleaved(V_last_, 3);
+    V_ = a.transfer_interleaved(V_, DofLayout::per_node);
+    if (V_last_.size() == DofLayout::fields_of(static_cast<int>(map.size())))
+      V_last_ = a.transfer_interleaved(V_last_, DofLayout::per_node);
     v_nodal_ = a.transfer(v_nodal_);
     strain_ = a.transfer(strain_.transpose()).transpose();
     p_nodal_ = a.transfer(p_nodal_.transpose()).transpose();
