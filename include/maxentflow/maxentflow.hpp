@@ -27,5 +27,6 @@
 #include <maxentflow/contact/contact.hpp>
 #include <maxentflow/contact/contact_set.hpp>
 #include <maxentflow/stepper/node_adaptivity.hpp>
+#include <maxentflow/stepper/nodal_fields.hpp>
 #include <maxentflow/stepper/stepper.hpp>
 #include <maxentflow/stepper/results_writer.hpp>

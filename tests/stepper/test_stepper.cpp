@@ -524,3 +524,58 @@ TEST_CASE("step control is a policy: a controller that never retries fails at th
   CHECK(HalvingRetry{2}.substeps(2) == 4);
   CHECK(HalvingRetry{2}.substeps(3) == 0);
 }
+
+TEST_CASE("nodal fields: a field the user registers travels with the material through rezoning and "
+          "reaches the VTU",
+          "[stepper][rezoning][results]") {
+  // Homogeneous plane-strain compression (V1) with tight rezoning limits: a
+  // material point moves as x = s x0, so a field holding each node's initial
+  // x must stay x / s on every node, kept, removed around or inserted (an
+  // inserted node gets the mean of its edge's ends, exact for a linear field).
+  const double R0 = 10, H0 = 12, V = 0.06, dt = 1;
+  StepperParams prm;
+  prm.geometry = Geometry::plane_strain;
+  prm.dt = dt;
+  prm.adapt.enabled = true;
+  prm.adapt.min_ratio = 0.7;
+  prm.adapt.max_ratio = 1.6;
+  Stepper<NortonHoff> s(block_nodes(7, 8, R0, H0, false), NortonHoff(150.0, 0.2, 1e-8), prm);
+  s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
+  RigidTool top = flat_plate("top", {0, H0}, {0, -1}, 100);
+  top.set_velocity({0, -V});
+  s.add_tool(top);
+  s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+  s.add_nodal_field("x0", 1);
+  s.nodal_field("x0") = s.nodes().row(0);
+  CHECK_THROWS_AS(s.add_nodal_field("x0", 1), Error);
+  CHECK_THROWS_WITH(s.nodal_field("temperature"), Catch::Contains("no nodal field 'temperature'"));
+  const auto dir = std::filesystem::temp_directory_path() / "maxentflow_test_nodal_fields";
+  std::filesystem::remove_all(dir);
+  ResultsWriter out(dir);
+  double H = H0, stretch = 1, max_error = 0;
+  int added = 0, removed = 0;
+  for (int k = 0; k < 100 && (added == 0 || removed == 0); ++k) {
+    const auto& rec = s.step();
+    added += rec.nodes_added;
+    removed += rec.nodes_removed;
+    stretch *= 1 + V / H * dt;
+    H -= V * dt;
+    const Eigen::MatrixXd& x0 = s.nodal_field("x0");
+    REQUIRE(x0.cols() == s.nodes().cols());
+    for (Eigen::Index a = 0; a < x0.cols(); ++a)
+      max_error = std::max(max_error, std::abs(x0(0, a) - s.nodes()(0, a) / stretch) / R0);
+    out.record(s, true);
+  }
+  INFO("nodes added " << added << ", removed " << removed);
+  CHECK(added > 0);
+  CHECK(removed > 0);
+  CHECK(max_error < 1e-8);
+  // The last VTU has the field, one value per node of the solved configuration.
+  const int last = s.steps_done();
+  char name[32];
+  std::snprintf(name, sizeof name, "step_%04d.vtu", last);
+  const std::string xml = slurp(dir / name);
+  CHECK(xml.find("Name=\"x0\"") != std::string::npos);
+  check_vtu(dir / name, static_cast<int>(s.nodes_solved().cols()));
+  std::filesystem::remove_all(dir);
+}

@@ -10,6 +10,7 @@
 
 #include <Eigen/Core>
 
+#include <maxentflow/core/error.hpp>
 #include <maxentflow/io/csv.hpp>
 #include <maxentflow/io/vtk.hpp>
 
@@ -46,13 +47,20 @@ class ResultsWriter {
     std::vector<int> boundary(static_cast<std::size_t>(n), 0);
     for (int a : mesh.boundary_nodes()) boundary[static_cast<std::size_t>(a)] = 1;
     VtuWriter w;
-    w.points(s.nodes_solved())
-        .triangles(mesh.triangles())
-        .point_vector("velocity", s.velocity())
-        .point_scalar("pressure", s.pressure())
-        .point_scalar("strain_rate", s.strain_rate())
-        .point_scalar("effective_strain", s.effective_strain())
-        .point_scalar("boundary", boundary)
+    w.points(s.nodes_solved()).triangles(mesh.triangles());
+    // The nodal fields marked for output (velocity, pressure, strain rate,
+    // effective strain, and those a law or the user registered).
+    for (const auto& f : s.nodal_fields().fields()) {
+      if (!f.output) continue;
+      const auto& v = f.values;
+      if (v.rows() == 1)
+        w.point_scalar(f.name, Eigen::Map<const Eigen::VectorXd>(v.data(), v.cols()));
+      else if (v.rows() <= 3)
+        w.point_vector(f.name, v);
+      else
+        for (Eigen::Index c = 0; c < v.rows(); ++c) w.point_scalar(detail::cat(f.name, "_", c), v.row(c).transpose());
+    }
+    w.point_scalar("boundary", boundary)
         .point_scalar("contact", s.contact_flags())
         .point_scalar("h", mesh.h());
     w.write(dir_ / name);

@@ -27,6 +27,7 @@
 #include <maxentflow/material/norton_hoff.hpp>
 #include <maxentflow/mesh/integration_mesh.hpp>
 #include <maxentflow/solver/nonlinear_solver.hpp>
+#include <maxentflow/stepper/nodal_fields.hpp>
 #include <maxentflow/stepper/node_adaptivity.hpp>
 
 namespace maxentflow {
@@ -141,11 +142,14 @@ class Stepper {
     require(prm_.dt > 0 && std::isfinite(prm_.dt), detail::cat("dt must be positive, got ", prm_.dt),
             "Stepper");
     const auto n = x_.cols();
-    V_ = Eigen::VectorXd::Zero(DofLayout::fields_of(static_cast<int>(n)));
-    v_nodal_ = Eigen::Matrix2Xd::Zero(2, n);
-    p_nodal_ = Eigen::VectorXd::Zero(n);
-    d_nodal_ = Eigen::VectorXd::Zero(n);
-    strain_ = Eigen::VectorXd::Zero(n);
+    fields_ = NodalFields(n);
+    k_.coef = fields_.add("coefficients", DofLayout::per_node, false);
+    k_.coef_last = fields_.add("coefficients_last", DofLayout::per_node, false);
+    k_.velocity = fields_.add("velocity", 2);
+    k_.pressure = fields_.add("pressure", 1);
+    k_.strain_rate = fields_.add("strain_rate", 1);
+    k_.strain = fields_.add("effective_strain", 1);
+    k_.h0 = fields_.add("h0", 1, false);
     contact_flag_.assign(static_cast<std::size_t>(n), 0);
   }
 
@@ -171,11 +175,21 @@ class Stepper {
   // step; `nodes_solved()` are its positions).
   const Eigen::Matrix2Xd& nodes_solved() const { return x_solved_; }
   const Mesh& mesh() const { return *mesh_; }
-  const Eigen::Matrix2Xd& velocity() const { return v_nodal_; }
-  const Eigen::VectorXd& pressure() const { return p_nodal_; }
-  const Eigen::VectorXd& strain_rate() const { return d_nodal_; }
+  const Eigen::MatrixXd& velocity() const { return fields_[k_.velocity]; }  ///< 2 x N
+  Eigen::Map<const Eigen::VectorXd> pressure() const { return fields_.flat(k_.pressure); }
+  Eigen::Map<const Eigen::VectorXd> strain_rate() const { return fields_.flat(k_.strain_rate); }
   /// Effective (equivalent) plastic strain accumulated at the nodes, int d dt.
-  const Eigen::VectorXd& effective_strain() const { return strain_; }
+  Eigen::Map<const Eigen::VectorXd> effective_strain() const { return fields_.flat(k_.strain); }
+  /// Every per-node field (the stepper's and those added), as written to the VTU.
+  const NodalFields& nodal_fields() const { return fields_; }
+  /// Registers a field the nodes carry (a state a law or the user keeps):
+  /// saved with each step, transferred on rezoning, written to the VTU if
+  /// `output`. Its values: nodal_field(name), components x N.
+  int add_nodal_field(const std::string& name, int components, bool output = true, double init = 0.0) {
+    return fields_.add(name, components, output, init);
+  }
+  Eigen::MatrixXd& nodal_field(const std::string& name) { return fields_[name]; }
+  const Eigen::MatrixXd& nodal_field(const std::string& name) const { return fields_[name]; }
   /// 0: free, k + 1: in contact with tool k (last solved configuration).
   const std::vector<int>& contact_flags() const { return contact_flag_; }
   /// Velocity and pressure of the last solve at points of its configuration
@@ -200,7 +214,7 @@ class Stepper {
     StepRecord rec;
     rec.step = step_ + 1;
     rec.dt = prm_.dt;
-    if (prm_.adapt.enabled && h0_.size() == x_.cols()) rezone(rec);
+    if (prm_.adapt.enabled && h0_set_) rezone(rec);
     rec.nodes = static_cast<int>(x_.cols());
     const State saved = save();
     std::string failures;
@@ -260,19 +274,17 @@ class Stepper {
 
   struct State {
     Eigen::Matrix2Xd x;
-    Eigen::VectorXd V, V_last, strain;
-    Eigen::Matrix2Xd v_nodal;
+    NodalFields fields;
     std::vector<Eigen::Vector2d> tool_disp;
     double time, dt_last;
+    bool h0_set;
   };
-  State save() const { return {x_, V_, V_last_, strain_, v_nodal_, contact_.displacements(), time_, dt_last_}; }
+  State save() const { return {x_, fields_, contact_.displacements(), time_, dt_last_, h0_set_}; }
   void restore(const State& s) {
     x_ = s.x;
-    V_ = s.V;
-    V_last_ = s.V_last;
+    fields_ = s.fields;
     dt_last_ = s.dt_last;
-    strain_ = s.strain;
-    v_nodal_ = s.v_nodal;
+    h0_set_ = s.h0_set;
     time_ = s.time;
     contact_.restore(s.tool_disp);
   }
@@ -318,7 +330,10 @@ class Stepper {
     Configuration cfg;
     cfg.mesh = std::make_shared<Mesh>(prm_.mesh);
     cfg.mesh->build(x_);
-    if (h0_.size() != x_.cols()) h0_ = cfg.mesh->h();  // the rezoning's target spacing
+    if (!h0_set_) {  // the rezoning's target spacing: the first configuration's
+      fields_.flat(k_.h0) = cfg.mesh->h();
+      h0_set_ = true;
+    }
     rec.mesh_seconds += since(t);
     t = clock::now();
     typename Basis::params bp;
@@ -345,7 +360,7 @@ class Stepper {
                              Eigen::VectorXd& X, Eigen::Matrix2Xd& v) {
     // sys.constraints() (non-const) marks the system's structure for an
     // update: asked for anew wherever the rows change.
-    contact_.begin(sys.constraints(), *cfg.mesh, v_nodal_, dt);
+    contact_.begin(sys.constraints(), *cfg.mesh, fields_[k_.velocity], dt);
     const ConstraintSet& cs = std::as_const(sys).constraints();
     const int N = static_cast<int>(x_.cols());
     // One solver for the whole run: its linear policy keeps factorizations
@@ -401,10 +416,10 @@ class Stepper {
                      const Eigen::Matrix2Xd& v, double dt) {
     const int N = static_cast<int>(x_.cols());
     X_ = X;
-    V_last_ = V_;
+    fields_[k_.coef_last] = fields_[k_.coef];
     dt_last_ = dt;
-    V_ = X.head(DofLayout::fields_of(N));
-    v_nodal_ = v;
+    fields_.flat(k_.coef) = X.head(DofLayout::fields_of(N));
+    fields_[k_.velocity] = v;
     mesh_ = cfg.mesh;
     basis_ = cfg.basis;
     x_solved_ = x_;
@@ -443,8 +458,10 @@ class Stepper {
 
   // Where the solve of a step of dt starts (see Predictor).
   Eigen::VectorXd predicted(double dt) const {
-    if (prm_.predictor != Predictor::extrapolated || V_last_.size() != V_.size() || !(dt_last_ > 0)) return V_;
-    return V_ + (dt / dt_last_) * (V_ - V_last_);
+    const auto V = fields_.flat(k_.coef);
+    if (prm_.predictor != Predictor::extrapolated || !(dt_last_ > 0)) return V;
+    const auto V_last = fields_.flat(k_.coef_last);
+    return V + (dt / dt_last_) * (V - V_last);
   }
 
   // v(x_a) = sum_b p_b(x_a) V_b: max-ent is not interpolating inside, so the
@@ -456,6 +473,9 @@ class Stepper {
   void nodal_fields(const BasisTable<2>& tab, const Eigen::VectorXd& X, double dt,
                     const FlowSystem<Material>& sys) {
     const bool axi = prm_.geometry == Geometry::axisymmetric;
+    auto p_nodal = fields_.flat(k_.pressure);
+    auto d_nodal = fields_.flat(k_.strain_rate);
+    auto strain = fields_.flat(k_.strain);
     if (!tab.has_gradients()) {  // pressure from the basis, d: area-weighted Gauss-point mean
       const FlowPointState st = sys.point_state(X);
       const auto& disc = sys.discretization();
@@ -471,9 +491,9 @@ class Stepper {
         }
       }
       for (int a = 0; a < tab.size(); ++a) {
-        p_nodal_[a] = interpolate_fields(tab.nodes(a), tab.values(a), X)[2];
-        d_nodal_[a] = wsum[a] > 0 ? sum[a] / wsum[a] : 0.0;
-        strain_[a] += d_nodal_[a] * dt;
+        p_nodal[a] = interpolate_fields(tab.nodes(a), tab.values(a), X)[2];
+        d_nodal[a] = wsum[a] > 0 ? sum[a] / wsum[a] : 0.0;
+        strain[a] += d_nodal[a] * dt;
       }
       return;
     }
@@ -495,9 +515,9 @@ class Stepper {
       double dtt = 0.0;  // hoop rate v_r / r; on the axis its limit dv_r/dr
       if (axi) dtt = x_(0, a) > 1e-12 * mesh_h_scale(a) ? vr / x_(0, a) : L(0, 0);
       const double DD = D.squaredNorm() + dtt * dtt;
-      p_nodal_[a] = pr;
-      d_nodal_[a] = std::sqrt(2.0 / 3.0 * DD);
-      strain_[a] += d_nodal_[a] * dt;
+      p_nodal[a] = pr;
+      d_nodal[a] = std::sqrt(2.0 / 3.0 * DD);
+      strain[a] += d_nodal[a] * dt;
     }
   }
   // Predictor::spatial: V_a += f(x_a + dt v_a) - f(x_a) for f = (v, p) of
@@ -506,14 +526,16 @@ class Stepper {
   void predict_spatial(const Basis& basis, const Eigen::VectorXd& X, const Eigen::Matrix2Xd& v,
                        double dt) {
     const int N = static_cast<int>(x_.cols());
+    Eigen::Map<Eigen::VectorXd> V = fields_.flat(k_.coef);
+    const auto p_nodal = fields_.flat(k_.pressure);
 #pragma omp parallel for schedule(dynamic, 32)
     for (int a = 0; a < N; ++a) {
       const Eigen::Vector2d y = x_.col(a) + dt * v.col(a);
       try {
         const auto pv = basis.evaluate(y, false);
         const Eigen::Vector3d f = interpolate_fields(pv.node, pv.p, X);
-        V_.segment<2>(DofLayout::velocity(a, 0)) += f.head<2>() - v.col(a);
-        V_[DofLayout::pressure(a)] += f[2] - p_nodal_[a];
+        V.segment<2>(DofLayout::velocity(a, 0)) += f.head<2>() - v.col(a);
+        V[DofLayout::pressure(a)] += f[2] - p_nodal[a];
       } catch (const Error&) {
       }
     }
@@ -525,19 +547,12 @@ class Stepper {
     Mesh mesh(prm_.mesh);
     mesh.build(x_);
     const auto admissible = [this](const Eigen::Vector2d& p) { return contact_.admissible(p); };
-    const NodeAdaptation a = plan_node_adaptation(mesh, h0_, prm_.adapt, admissible);
+    const NodeAdaptation a = plan_node_adaptation(mesh, fields_.flat(k_.h0), prm_.adapt, admissible);
     rec.mesh_seconds += since(t);
     if (a.empty()) return;
     const std::vector<int> map = a.old_to_new(x_.cols());
     x_ = a.positions(x_);
-    V_ = a.transfer_interleaved(V_, DofLayout::per_node);
-    if (V_last_.size() == DofLayout::fields_of(static_cast<int>(map.size())))
-      V_last_ = a.transfer_interleaved(V_last_, DofLayout::per_node);
-    v_nodal_ = a.transfer(v_nodal_);
-    strain_ = a.transfer(strain_.transpose()).transpose();
-    p_nodal_ = a.transfer(p_nodal_.transpose()).transpose();
-    d_nodal_ = a.transfer(d_nodal_.transpose()).transpose();
-    h0_ = a.transfer(h0_.transpose()).transpose();
+    fields_.transfer(a);
     contact_flag_.assign(static_cast<std::size_t>(x_.cols()), 0);
     contact_.renumber(map);
     rec.nodes_added = a.added();
@@ -549,12 +564,17 @@ class Stepper {
   Material material_;
   Control control_;
   Eigen::Matrix2Xd x_, x_solved_;
-  Eigen::VectorXd V_, X_;
-  Eigen::VectorXd V_last_;  // the solve before V_'s, for Predictor::extrapolated
-  double dt_last_ = 0.0;    // its step
-  Eigen::Matrix2Xd v_nodal_;
-  Eigen::VectorXd p_nodal_, d_nodal_, strain_;
-  Eigen::VectorXd h0_;  // target spacing of the rezoning, per node
+  Eigen::VectorXd X_;
+  // The per-node fields, and the stepper's own among them: velocity and
+  // pressure coefficients (this solve's and the last one's, for
+  // Predictor::extrapolated), nodal velocity, pressure, strain rate,
+  // effective strain, the rezoning's target spacing h0.
+  NodalFields fields_;
+  struct {
+    int coef, coef_last, velocity, pressure, strain_rate, strain, h0;
+  } k_{};
+  double dt_last_ = 0.0;  // the step of coefficients_last -> coefficients
+  bool h0_set_ = false;
   std::vector<int> contact_flag_;
   ContactSet contact_;  // the tools, their laws and active sets
   std::vector<VelocityCondition> conditions_;
