@@ -18,6 +18,7 @@ struct Setup {
   bool rezone = true;
   double rezone_min = 0.35, rezone_max = 2.5;
   Predictor predictor = Predictor::spatial;  ///< steady flow through the die
+  NodeUpdate node_update = StepperParams{}.node_update;
   double opening() const { return (1.0 - reduction) * height; }
 };
 
@@ -47,6 +48,7 @@ Stepper<NortonHoff, Linear> make_simulation(const Setup& s) {
   prm.solver.newton_from_warm_start = false;
   prm.solver.switch_increment = 0.1;
   prm.predictor = s.predictor;
+  prm.node_update = s.node_update;
   prm.adapt.enabled = s.rezone;
   prm.adapt.min_ratio = s.rezone_min;
   prm.adapt.max_ratio = s.rezone_max;

@@ -149,6 +149,10 @@ int main(int argc, char** argv) {
   app.add_option("--n", s.n, "Norton-Hoff exponent n")->check(CLI::PositiveNumber);
   app.add_flag("--axisymmetric", s.axisymmetric, "A round bar (axisymmetric) instead of plane strain");
   app.add_flag("!--no-rezone", s.rezone, "Keep the initial nodes (no node removal or insertion)");
+  std::string node_update = "ab2";
+  app.add_option("--node-update", node_update,
+                 "How nodes move: euler (Eq. 18) or ab2 (Adams-Bashforth 2 on each node's velocity history)")
+      ->check(CLI::IsMember({"euler", "ab2"}));
   app.add_option("--rezone-min", s.rezone_min, "Rezoning: remove a node on an edge shorter than this * h0")
       ->check(CLI::Range(0.05, 0.9));
   app.add_option("--rezone-max", s.rezone_max, "Rezoning: split an edge longer than this * h0")
@@ -165,6 +169,7 @@ int main(int argc, char** argv) {
   app.add_option("--convergence", conv, "Only step 1 on billets of these nodes per side; compare the axis pressure")
       ->delimiter(',');
   CLI11_PARSE(app, argc, argv);
+  s.node_update = node_update == "ab2" ? NodeUpdate::adams_bashforth2 : NodeUpdate::euler;
 
   const fs::path dir(out);
   try {

@@ -34,6 +34,7 @@ Upset upsetting(Geometry g, int steps, double dt, Predictor predictor = Predicto
   prm.geometry = g;
   prm.dt = dt;
   prm.predictor = predictor;
+  prm.node_update = NodeUpdate::euler;  // the shape check follows Eq. (18)'s path
   Stepper<NortonHoff> s(block_nodes(7, 8, R0, H0, false), mat, prm);
   s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
   RigidTool top = flat_plate("top", {0, H0}, {0, -1}, 100);
@@ -384,6 +385,7 @@ TEST_CASE("V1 with rezoning: plane-strain compression to half height stays exact
   prm.adapt.enabled = true;
   prm.adapt.min_ratio = 0.7;  // tight, so that a 2:1 compression rezones
   prm.adapt.max_ratio = 1.6;
+  prm.node_update = NodeUpdate::euler;  // the shape check follows Eq. (18)'s path
   Stepper<NortonHoff> s(block_nodes(7, 8, R0, H0, false), mat, prm);
   s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
   RigidTool top = flat_plate("top", {0, H0}, {0, -1}, 100);
@@ -552,14 +554,13 @@ TEST_CASE("nodal fields: a field the user registers travels with the material th
   const auto dir = std::filesystem::temp_directory_path() / "maxentflow_test_nodal_fields";
   std::filesystem::remove_all(dir);
   ResultsWriter out(dir);
-  double H = H0, stretch = 1, max_error = 0;
+  double max_error = 0;
   int added = 0, removed = 0;
   for (int k = 0; k < 100 && (added == 0 || removed == 0); ++k) {
     const auto& rec = s.step();
     added += rec.nodes_added;
     removed += rec.nodes_removed;
-    stretch *= 1 + V / H * dt;
-    H -= V * dt;
+    const double stretch = s.nodes().row(0).maxCoeff() / R0;  // homogeneous: x = stretch x0
     const Eigen::MatrixXd& x0 = s.nodal_field("x0");
     REQUIRE(x0.cols() == s.nodes().cols());
     for (Eigen::Index a = 0; a < x0.cols(); ++a)
@@ -578,4 +579,56 @@ TEST_CASE("nodal fields: a field the user registers travels with the material th
   CHECK(xml.find("Name=\"x0\"") != std::string::npos);
   check_vtu(dir / name, static_cast<int>(s.nodes_solved().cols()));
   std::filesystem::remove_all(dir);
+}
+
+namespace {
+
+// Axisymmetric frictionless upsetting to a 25 % stroke with steps of dt:
+// the largest relative difference between the plate force and the force on
+// the continuum path (R^2 H = R0^2 H0), and the largest volume change.
+std::pair<double, double> upsetting_path_error(NodeUpdate update, double dt) {
+  const double R0 = 10, H0 = 12, V = 0.06;
+  const NortonHoff mat(150.0, 0.2, 1e-8);
+  StepperParams prm;
+  prm.geometry = Geometry::axisymmetric;
+  prm.dt = dt;
+  prm.node_update = update;
+  Stepper<NortonHoff> s(block_nodes(7, 8, R0, H0, false), mat, prm);
+  s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
+  RigidTool top = flat_plate("top", {0, H0}, {0, -1}, 100);
+  top.set_velocity({0, -V});
+  s.add_tool(top);
+  s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+  double force = 0, volume = 0;
+  const int steps = static_cast<int>(std::lround(0.25 * H0 / V / dt));
+  for (int k = 0; k < steps; ++k) {
+    const double H = H0 - V * dt * k;  // the plate is exact: the solved configuration's height
+    const double e = V / H, Rc2 = R0 * R0 * H0 / H;
+    const double Fc = 3 * mat.viscosity(e).mu * e * M_PI * Rc2;
+    const auto& rec = s.step();
+    const double R = s.nodes_solved().row(0).maxCoeff();
+    force = std::max(force, std::abs(rec.tool_force[1].y() - Fc) / Fc);
+    volume = std::max(volume, std::abs(R * R * H / (R0 * R0 * H0) - 1));
+  }
+  return {force, volume};
+}
+
+}  // namespace
+
+TEST_CASE("node update: Adams-Bashforth 2 follows the continuum path to second order, Eq. (18) to first",
+          "[verification][stepper]") {
+  const auto [ab_force, ab_volume] = upsetting_path_error(NodeUpdate::adams_bashforth2, 1.0);
+  const auto [ab_force2, ab_volume2] = upsetting_path_error(NodeUpdate::adams_bashforth2, 2.0);
+  const auto [eu_force, eu_volume] = upsetting_path_error(NodeUpdate::euler, 1.0);
+  const auto [eu_force2, eu_volume2] = upsetting_path_error(NodeUpdate::euler, 2.0);
+  INFO("AB2: force " << ab_force << " (dt 2: " << ab_force2 << "), volume " << ab_volume << "; Euler: force "
+                     << eu_force << " (dt 2: " << eu_force2 << "), volume " << eu_volume);
+  // E1's targets (dt = 1): force within 1e-4 of the continuum path, volume within 0.01 %.
+  CHECK(ab_force < 1e-4);
+  CHECK(ab_volume < 1e-4);
+  CHECK(eu_force > 10 * ab_force);
+  // Observed orders from dt = 2 to dt = 1: 2 and 1.
+  CHECK(std::log2(ab_force2 / ab_force) > 1.8);
+  CHECK(std::log2(eu_force2 / eu_force) == Approx(1.0).margin(0.2));
+  CHECK(std::log2(ab_volume2 / ab_volume) > 1.8);
 }
