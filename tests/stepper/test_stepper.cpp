@@ -20,6 +20,16 @@ using maxentflow::test::block_nodes;
 
 namespace {
 
+// Upsetting's tools: a fixed bottom plate, a top plate at H0 moving down at
+// V (both frictionless), and v_x = 0 on the axis (symmetry line) x = 0.
+void add_plates(Stepper<NortonHoff>& s, double H0, double V) {
+  s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
+  RigidTool top = flat_plate("top", {0, H0}, {0, -1}, 100);
+  top.set_velocity({0, -V});
+  s.add_tool(top);
+  s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+}
+
 struct Upset {
   double max_force_error = 0, max_shape_error = 0;
   int steps = 0;
@@ -36,12 +46,8 @@ Upset upsetting(Geometry g, int steps, double dt, Predictor predictor = Predicto
   prm.predictor = predictor;
   prm.node_update = NodeUpdate::euler;  // the shape check follows Eq. (18)'s path
   Stepper<NortonHoff> s(block_nodes(7, 8, R0, H0, false), mat, prm);
-  s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
-  RigidTool top = flat_plate("top", {0, H0}, {0, -1}, 100);
-  top.set_velocity({0, -V});
-  s.add_tool(top);
+  add_plates(s, H0, V);
   if (std::getenv("MAXENTFLOW_TEST_LOG")) s.set_log(&std::cout);
-  s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
   const bool axi = g == Geometry::axisymmetric;
   Upset u;
   // The billet stays a rectangle; its width follows the Eq. (18) update
@@ -263,11 +269,7 @@ TEST_CASE("results: VTU, PVD and CSV files parse and are whole after every step"
   prm.geometry = Geometry::axisymmetric;
   prm.dt = 2.0;
   Stepper<NortonHoff> s(block_nodes(5, 6, 10, H0, false), NortonHoff(150.0, 0.2, 1e-8), prm);
-  s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
-  RigidTool top = flat_plate("top", {0, H0}, {0, -1}, 100);
-  top.set_velocity({0, -V});
-  s.add_tool(top);
-  s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+  add_plates(s, H0, V);
   ResultsWriter out(dir);
   std::vector<std::string> vtus;
   for (int k = 1; k <= 4; ++k) {
@@ -387,11 +389,7 @@ TEST_CASE("V1 with rezoning: plane-strain compression to half height stays exact
   prm.adapt.max_ratio = 1.6;
   prm.node_update = NodeUpdate::euler;  // the shape check follows Eq. (18)'s path
   Stepper<NortonHoff> s(block_nodes(7, 8, R0, H0, false), mat, prm);
-  s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
-  RigidTool top = flat_plate("top", {0, H0}, {0, -1}, 100);
-  top.set_velocity({0, -V});
-  s.add_tool(top);
-  s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+  add_plates(s, H0, V);
   double R = R0, H = H0, max_force_error = 0, max_shape_error = 0;
   int added = 0, removed = 0;
   for (int k = 0; k < 100; ++k) {
@@ -542,11 +540,7 @@ TEST_CASE("nodal fields: a field the user registers travels with the material th
   prm.adapt.min_ratio = 0.7;
   prm.adapt.max_ratio = 1.6;
   Stepper<NortonHoff> s(block_nodes(7, 8, R0, H0, false), NortonHoff(150.0, 0.2, 1e-8), prm);
-  s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
-  RigidTool top = flat_plate("top", {0, H0}, {0, -1}, 100);
-  top.set_velocity({0, -V});
-  s.add_tool(top);
-  s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+  add_plates(s, H0, V);
   s.add_nodal_field("x0", 1);
   s.nodal_field("x0") = s.nodes().row(0);
   CHECK_THROWS_AS(s.add_nodal_field("x0", 1), Error);
@@ -594,11 +588,7 @@ std::pair<double, double> upsetting_path_error(NodeUpdate update, double dt) {
   prm.dt = dt;
   prm.node_update = update;
   Stepper<NortonHoff> s(block_nodes(7, 8, R0, H0, false), mat, prm);
-  s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
-  RigidTool top = flat_plate("top", {0, H0}, {0, -1}, 100);
-  top.set_velocity({0, -V});
-  s.add_tool(top);
-  s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+  add_plates(s, H0, V);
   double force = 0, volume = 0;
   const int steps = static_cast<int>(std::lround(0.25 * H0 / V / dt));
   for (int k = 0; k < steps; ++k) {
