@@ -441,8 +441,8 @@ class Stepper {
     nodal_fields(cfg.at_nodes, X, dt, sys);
   }
 
-  // Eq. (18): the nodes move with the material velocity at their position,
-  // the tools with theirs; then the contact and velocity conditions of the
+  // The nodes move with the material velocity at their position (the node
+  // update: AB2 or Eq. (18)), the tools with theirs; then the contact and velocity conditions of the
   // step are made exact on the new positions, and a penetration fails the step.
   void move_nodes(const Configuration& cfg, const Eigen::VectorXd& X, const Eigen::Matrix2Xd& v, double dt) {
     // Nodes under a velocity condition end the step where it puts them: the
