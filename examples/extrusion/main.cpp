@@ -17,6 +17,7 @@
 #include <filesystem>
 #include <iostream>
 #include <sstream>
+#include <string>
 #include <vector>
 
 #include <maxentflow/maxentflow.hpp>
@@ -119,19 +120,18 @@ int convergence(Setup s, const std::vector<int>& sides, const fs::path& dir, boo
   return 0;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  CLI::App app{"maxentflow E2: plane-strain forward extrusion (paper Figs. 6-7)"};
-  Setup s;
+struct Options {
   bool no_plots = false, check = false, verbose = false;
   double area_tol = 0.03;
   int steps = 100, vtu_every = 10;
-  std::string out = "results/extrusion";
-  std::vector<int> conv;
+  std::string out = "results/extrusion", node_update = "ab2";
+  std::vector<int> convergence;
+};
+
+void add_options(CLI::App& app, Setup& s, Options& o) {
   app.add_option("--nx", s.nx, "Billet nodes along the extrusion direction")->check(CLI::Range(4, 2000));
   app.add_option("--ny", s.ny, "Billet nodes across the half height")->check(CLI::Range(4, 2000));
-  app.add_option("--steps", steps, "Time steps")->check(CLI::Range(1, 100000));
+  app.add_option("--steps", o.steps, "Time steps")->check(CLI::Range(1, 100000));
   app.add_option("--dt", s.dt, "Time step")->check(CLI::PositiveNumber);
   app.add_option("--length", s.length, "Billet length")->check(CLI::PositiveNumber);
   app.add_option("--height", s.height, "Billet half height (container radius)")->check(CLI::PositiveNumber);
@@ -139,8 +139,7 @@ int main(int argc, char** argv) {
   app.add_option("--land", s.land, "Die land length")->check(CLI::NonNegativeNumber);
   app.add_option("--velocity", s.V, "Ram speed")->check(CLI::PositiveNumber);
   app.add_option("--gamma", s.gamma, "Max-ent locality gamma")->check(CLI::PositiveNumber);
-  app.add_option("--tol0", s.tol0, "Max-ent support cut-off on the prior weight")
-      ->check(CLI::Range(1e-300, 0.5));
+  app.add_option("--tol0", s.tol0, "Max-ent support cut-off on the prior weight")->check(CLI::Range(1e-300, 0.5));
   app.add_option("--Cs", s.Cs, "Stabilization constant Cs (Eq. 14)")->check(CLI::NonNegativeNumber);
   app.add_option("--alpha", s.alpha, "Alpha-shape parameter (circumradius <= alpha h)")->check(CLI::PositiveNumber);
   app.add_option("--mu0", s.mu0, "Norton-Hoff mu0")->check(CLI::PositiveNumber);
@@ -149,136 +148,189 @@ int main(int argc, char** argv) {
   app.add_option("--n", s.n, "Norton-Hoff exponent n")->check(CLI::PositiveNumber);
   app.add_flag("--axisymmetric", s.axisymmetric, "A round bar (axisymmetric) instead of plane strain");
   app.add_flag("!--no-rezone", s.rezone, "Keep the initial nodes (no node removal or insertion)");
-  std::string node_update = "ab2";
-  app.add_option("--node-update", node_update,
+  app.add_option("--node-update", o.node_update,
                  "How nodes move: euler (Eq. 18) or ab2 (Adams-Bashforth 2 on each node's velocity history)")
       ->check(CLI::IsMember({"euler", "ab2"}));
   app.add_option("--rezone-min", s.rezone_min, "Rezoning: remove a node on an edge shorter than this * h0")
       ->check(CLI::Range(0.05, 0.9));
   app.add_option("--rezone-max", s.rezone_max, "Rezoning: split an edge longer than this * h0")
       ->check(CLI::Range(1.2, 10.0));
-  app.add_option("--vtu-every", vtu_every, "Write a VTU every this many steps (and at steps 1, 10, last)")
+  app.add_option("--vtu-every", o.vtu_every, "Write a VTU every this many steps (and at steps 1, 10, last)")
       ->check(CLI::Range(1, 100000));
-  app.add_option("--out-dir", out, "Results folder");
-  app.add_flag("--no-plots", no_plots, "Skip the PNG figures");
-  app.add_flag("--verbose", verbose, "Log every nonlinear iteration");
-  app.add_flag("--check", check,
+  app.add_option("--out-dir", o.out, "Results folder");
+  app.add_flag("--no-plots", o.no_plots, "Skip the PNG figures");
+  app.add_flag("--verbose", o.verbose, "Log every nonlinear iteration");
+  app.add_flag("--check", o.check,
                "Exit 1 unless: no penetration, area change < --area-tol, product width within 5 % of the "
                "die opening, step-1 axis pressure decreasing, die-face pressure peaking next to the die corner");
-  app.add_option("--area-tol", area_tol, "Largest area (volume) change --check accepts")->check(CLI::PositiveNumber);
-  app.add_option("--convergence", conv, "Only step 1 on billets of these nodes per side; compare the axis pressure")
+  app.add_option("--area-tol", o.area_tol, "Largest area (volume) change --check accepts")->check(CLI::PositiveNumber);
+  app.add_option("--convergence", o.convergence,
+                 "Only step 1 on billets of these nodes per side; compare the axis pressure")
       ->delimiter(',');
-  CLI11_PARSE(app, argc, argv);
-  s.node_update = node_update == "ab2" ? NodeUpdate::adams_bashforth2 : NodeUpdate::euler;
+}
 
-  const fs::path dir(out);
+// What the run measured along the way.
+struct RunMeasures {
+  Profiles first;               // step-1 pressure profiles
+  double max_area_change = 0;  // relative to the billet's
+  double min_gap = 0;          // most negative tool gap after a move, in h
+};
+
+// The steps, each recorded; on a failed step the configuration it failed
+// from is kept as failed_step_nodes.csv before the error goes on.
+RunMeasures run(const Setup& s, const Options& o, Stepper<NortonHoff>& sim, const fs::path& dir) {
+  ResultsWriter results(dir);
+  const double area0 = s.axisymmetric ? M_PI * s.height * s.height * s.length : s.length * s.height;
+  RunMeasures m;
+  for (int k = 1; k <= o.steps; ++k) {
+    try {
+      sim.step();
+    } catch (const Error&) {
+      CsvTable nodes({"x", "y"});
+      for (Eigen::Index a = 0; a < sim.nodes().cols(); ++a) {
+        nodes.cell(sim.nodes()(0, a)).cell(sim.nodes()(1, a));
+        nodes.end_row();
+      }
+      nodes.write(dir / "failed_step_nodes.csv");
+      throw;
+    }
+    results.record(sim, k == 1 || k == 10 || k == o.steps || k == (o.steps + 1) / 2 || k % o.vtu_every == 0);
+    if (k == 1) {
+      m.first = profiles(s, sim, 301);
+      write_profiles(dir, m.first);
+    }
+    // Mass: the area (volume) inside the alpha-shape boundary.
+    m.max_area_change = std::max(m.max_area_change, std::abs(material_measure(s, sim.mesh()) - area0) / area0);
+    // Penetration after the move, relative to the nodal spacing.
+    for (int a : sim.mesh().boundary_nodes())
+      for (const auto& tool : sim.tools())
+        m.min_gap = std::min(m.min_gap, tool.gap(sim.nodes().col(a)) / sim.mesh().h()(a));
+  }
+  return m;
+}
+
+// Product width: the material's area between the die exit and the nose (away
+// from both by a spacing or three) over that length, i.e. the mean thickness
+// that carries the mass flow; the top node alone follows the free surface's
+// node-scale waviness. On the last solved configuration.
+struct ProductWidth {
+  double width = 0, error = 1, top = 0;
+  int nodes = 0;
+};
+ProductWidth product_width(const Setup& s, const IntegrationMesh<>& mesh) {
+  const double exit = s.length + s.land;
+  double front = -1e300;
+  for (Eigen::Index a = 0; a < mesh.nodes().cols(); ++a) front = std::max(front, frame(s, mesh.nodes().col(a)).x());
+  const double hmean = s.length / (s.nx - 1);
+  const double x1 = exit + hmean, x2 = front - 3 * hmean;
+  double area = 0;
+  ProductWidth w;
+  for (std::size_t t = 0; t < mesh.triangles().size(); ++t) {
+    Eigen::Vector2d c = Eigen::Vector2d::Zero();
+    for (int a : mesh.triangles()[t]) c += frame(s, mesh.nodes().col(a)) / 3.0;
+    if (c.x() > x1 && c.x() < x2) area += mesh.area(static_cast<int>(t));
+  }
+  for (Eigen::Index a = 0; a < mesh.nodes().cols(); ++a) {
+    const Eigen::Vector2d q = frame(s, mesh.nodes().col(a));
+    if (q.x() > x1 && q.x() < x2) {
+      w.top = std::max(w.top, q.y());
+      ++w.nodes;
+    }
+  }
+  w.width = x2 > x1 ? area / (x2 - x1) : 0.0;
+  w.error = w.nodes ? std::abs(w.width - s.opening()) / s.opening() : 1.0;
+  return w;
+}
+
+// The step-1 profiles' shape: the axis pressure's largest rise (it should
+// decrease toward the die) and where the die-face pressure peaks. The max-ent
+// basis smooths the corner singularity (the paper's Fig. 7: the FEM peak is
+// sharper), so "at the corner" means: the die-face maximum is on the lower
+// half of the face, and at least 1.5 times the pressure on the die opening
+// just below the corner.
+struct Step1Shape {
+  double range = 0, rise = 0, peak_y = 0, peak = 0, die_below = 0;
+};
+Step1Shape step1_shape(const Setup& s, const Profiles& first) {
+  Step1Shape f;
+  f.range = first.p_axis.maxCoeff() - first.p_axis.minCoeff();
+  for (Eigen::Index i = 1; i < first.p_axis.size(); ++i)
+    f.rise = std::max(f.rise, first.p_axis[i] - first.p_axis[i - 1]);
+  Eigen::Index peak = 0;
+  f.peak = first.p_die.maxCoeff(&peak);
+  f.peak_y = first.ys[peak];
+  for (Eigen::Index i = 0; i < first.ys.size(); ++i)
+    if (first.ys[i] < s.opening()) f.die_below = std::max(f.die_below, first.p_die[i]);
+  return f;
+}
+
+// The physical checks of --check; the failed ones, named.
+std::vector<std::string> failed_checks(const Setup& s, const Options& o, const RunMeasures& m,
+                                       const ProductWidth& w, const Step1Shape& f) {
+  std::vector<std::string> failed;
+  if (m.min_gap < -1e-3) failed.push_back("a node penetrates a tool");
+  if (m.max_area_change > o.area_tol) failed.push_back("area changes by more than --area-tol");
+  if (o.steps * s.dt * s.V >= 0.5 * s.length && w.error > 0.05)
+    failed.push_back("product width off the die opening by > 5 %");
+  if (f.rise > 0.01 * f.range) failed.push_back("step-1 axis pressure not decreasing");
+  if (f.peak_y < s.opening() || f.peak_y > s.opening() + 0.5 * (s.height - s.opening()) || !(f.peak > 1.5 * f.die_below))
+    failed.push_back("die-face pressure does not peak next to the die corner");
+  return failed;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  // 1. Options: every parameter of the case on the command line.
+  CLI::App app{"maxentflow E2: plane-strain forward extrusion (paper Figs. 6-7)"};
+  Setup s;
+  Options o;
+  add_options(app, s, o);
+  CLI11_PARSE(app, argc, argv);
+  s.node_update = o.node_update == "ab2" ? NodeUpdate::adams_bashforth2 : NodeUpdate::euler;
+  const fs::path dir(o.out);
   try {
-    if (!conv.empty()) return convergence(s, conv, dir, check);
+    if (!o.convergence.empty()) return convergence(s, o.convergence, dir, o.check);
+    // 2. The case (extrusion_case.hpp): billet nodes, the ram and the die as
+    //    frictionless rigid tools, v_y = 0 on the axis, rezoning.
     Stepper<NortonHoff> sim = make_simulation(s);
     sim.set_log(&std::cout);
-    if (verbose) sim.parameters().solver.log = &std::cout;
-    ResultsWriter results(dir);
-    const double area0 = s.axisymmetric ? M_PI * s.height * s.height * s.length : s.length * s.height;
-    double min_gap = 0, max_area_change = 0;
-    Profiles first;
-    for (int k = 1; k <= steps; ++k) {
-      try {
-        sim.step();
-      } catch (const Error&) {  // keep the configuration the step failed from, for a look
-        CsvTable nodes({"x", "y"});
-        for (Eigen::Index a = 0; a < sim.nodes().cols(); ++a) {
-          nodes.cell(sim.nodes()(0, a)).cell(sim.nodes()(1, a));
-          nodes.end_row();
-        }
-        nodes.write(dir / "failed_step_nodes.csv");
-        throw;
-      }
-      const bool vtu = k == 1 || k == 10 || k == steps || k == (steps + 1) / 2 || k % vtu_every == 0;
-      results.record(sim, vtu);
-      if (k == 1) {
-        first = profiles(s, sim, 301);
-        write_profiles(dir, first);
-      }
-      // Mass: the area (volume) inside the alpha-shape boundary.
-      const double area = material_measure(s, sim.mesh());
-      max_area_change = std::max(max_area_change, std::abs(area - area0) / area0);
-      // Penetration after the move, relative to the nodal spacing.
-      for (int a : sim.mesh().boundary_nodes())
-        for (const auto& tool : sim.tools())
-          min_gap = std::min(min_gap, tool.gap(sim.nodes().col(a)) / sim.mesh().h()(a));
-    }
-    // Product width: the material's area between the die exit and the nose
-    // (away from both by a spacing or three) over that length, i.e. the mean
-    // thickness that carries the mass flow; the top node alone follows the
-    // free surface's node-scale waviness. On the last solved configuration.
-    const auto& mesh = sim.mesh();
-    const double exit = s.length + s.land;
-    double front = -1e300;
-    for (Eigen::Index a = 0; a < mesh.nodes().cols(); ++a)
-      front = std::max(front, frame(s, mesh.nodes().col(a)).x());
-    const double hmean = s.length / (s.nx - 1);
-    const double x1 = exit + hmean, x2 = front - 3 * hmean;
-    double product_area = 0, width_top = 0;
-    int product_nodes = 0;
-    for (std::size_t t = 0; t < mesh.triangles().size(); ++t) {
-      Eigen::Vector2d c = Eigen::Vector2d::Zero();
-      for (int a : mesh.triangles()[t]) c += frame(s, mesh.nodes().col(a)) / 3.0;
-      if (c.x() > x1 && c.x() < x2) product_area += mesh.area(static_cast<int>(t));
-    }
-    for (Eigen::Index a = 0; a < mesh.nodes().cols(); ++a) {
-      const Eigen::Vector2d q = frame(s, mesh.nodes().col(a));
-      if (q.x() > x1 && q.x() < x2) {
-        width_top = std::max(width_top, q.y());
-        ++product_nodes;
-      }
-    }
-    const double width = x2 > x1 ? product_area / (x2 - x1) : 0.0;
-    const double width_error = product_nodes ? std::abs(width - s.opening()) / s.opening() : 1.0;
-    // Step-1 profiles: axis pressure decreasing (tolerance 1 % of its range),
-    // die-face peak near the corner (within 2 h of y = opening).
-    const double range = first.p_axis.maxCoeff() - first.p_axis.minCoeff();
-    double rise = 0;
-    for (Eigen::Index i = 1; i < first.p_axis.size(); ++i)
-      rise = std::max(rise, first.p_axis[i] - first.p_axis[i - 1]);
-    // The max-ent basis smooths the corner singularity (the paper's Fig. 7: the
-    // FEM peak is sharper), so "at the corner" means: the die-face maximum is
-    // on the lower half of the face, and at least 1.5 times the pressure on the
-    // die opening just below the corner.
-    Eigen::Index peak = 0;
-    first.p_die.maxCoeff(&peak);
-    const double peak_y = first.ys[peak];
-    double die_below = 0;
-    for (Eigen::Index i = 0; i < first.ys.size(); ++i)
-      if (first.ys[i] < s.opening()) die_below = std::max(die_below, first.p_die[i]);
+    if (o.verbose) sim.parameters().solver.log = &std::cout;
+
+    // 3. March, recording each step (VTU/PVD, forces.csv), the step-1
+    //    profiles, the area and the penetration.
+    const RunMeasures m = run(s, o, sim, dir);
+
+    // 4. What an engineer checks: the product's width against the die
+    //    opening, the step-1 pressure along the axis and the die face.
+    const ProductWidth w = product_width(s, sim.mesh());
+    const Step1Shape f = step1_shape(s, m.first);
     double total = 0;
     for (const auto& r : sim.history()) total += r.seconds;
-    std::cout << "extrusion: " << steps << " steps, " << sim.nodes().cols() << " nodes, " << total << " s\n"
-              << "  max area change " << 100 * max_area_change << " %, min gap " << min_gap
-              << " h, product width " << width << " (die opening " << s.opening() << ", "
-              << 100 * width_error << " %; top node at " << width_top << ", " << product_nodes
-              << " nodes)\n"
-              << "  step-1 axis pressure " << first.p_axis[0] << " at the ram to "
-              << first.p_axis[first.p_axis.size() - 1] << " at the die; largest rise "
-              << rise / range << " of the range; die-face peak at y = " << peak_y << "\n"
+    std::cout << "extrusion: " << o.steps << " steps, " << sim.nodes().cols() << " nodes, " << total << " s\n"
+              << "  max area change " << 100 * m.max_area_change << " %, min gap " << m.min_gap
+              << " h, product width " << w.width << " (die opening " << s.opening() << ", " << 100 * w.error
+              << " %; top node at " << w.top << ", " << w.nodes << " nodes)\n"
+              << "  step-1 axis pressure " << m.first.p_axis[0] << " at the ram to "
+              << m.first.p_axis[m.first.p_axis.size() - 1] << " at the die; largest rise " << f.rise / f.range
+              << " of the range; die-face peak at y = " << f.peak_y << "\n"
               << "results in " << dir << " (step.pvd: open in ParaView)\n";
-    if (!no_plots) {
+
+    // 5. Figures: pressure and velocity maps, ram force against stroke, the
+    //    step-1 profiles.
+    if (!o.no_plots) {
       std::ostringstream args;
-      const int mid = (steps + 1) / 2;
-      args << '"' << dir.string() << "\" --maps pressure:1," << std::min(10, steps) << ',' << mid << ','
-           << steps << " velocity_x:" << std::min(10, steps) << " velocity_y:" << std::min(10, steps)
+      const int mid = (o.steps + 1) / 2, early = std::min(10, o.steps);
+      args << '"' << dir.string() << "\" --maps pressure:1," << early << ',' << mid << ',' << o.steps
+           << " velocity_x:" << early << " velocity_y:" << early
            << " --force-tool ram --profile profile_axis_step1.csv profile_die_step1.csv";
       examples::run_plot_script(fs::path(MAXENTFLOW_EXAMPLE_DIR) / "../common/plot_forming.py", args.str());
     }
-    if (check) {
-      std::vector<std::string> failed;
-      if (min_gap < -1e-3) failed.push_back("a node penetrates a tool");
-      if (max_area_change > area_tol) failed.push_back("area changes by more than --area-tol");
-      if (steps * s.dt * s.V >= 0.5 * s.length && width_error > 0.05) failed.push_back("product width off the die opening by > 5 %");
-      if (rise > 0.01 * range) failed.push_back("step-1 axis pressure not decreasing");
-      if (peak_y < s.opening() || peak_y > s.opening() + 0.5 * (s.height - s.opening()) ||
-          !(first.p_die[peak] > 1.5 * die_below))
-        failed.push_back("die-face pressure does not peak next to the die corner");
-      for (const auto& f : failed) std::cerr << "check failed: " << f << "\n";
+
+    // 6. --check: exit 1 when a physical check fails.
+    if (o.check) {
+      const auto failed = failed_checks(s, o, m, w, f);
+      for (const auto& msg : failed) std::cerr << "check failed: " << msg << "\n";
       if (!failed.empty()) return 1;
     }
   } catch (const Error& e) {

@@ -22,107 +22,131 @@
 namespace fs = std::filesystem;
 using namespace maxentflow;
 
-int main(int argc, char** argv) {
-  CLI::App app{"maxentflow E1: frictionless upsetting (paper Fig. 5)"};
+namespace {
+
+struct Options {
   bool plane_strain = false, no_plots = false;
   int nx = 21, ny = 25, steps = 100, vtu_every = 10;
   double tol0 = StepperParams{}.tol0;
   double radius = 10, height = 12, V = 0.06, dt = 1.0, gamma = 1.6, Cs = 0.5, mu0 = 150, n = 0.2;
   double alpha = 1.3, check = -1;
   std::string out = "results/upsetting", node_update = "ab2";
-  app.add_flag("--plane-strain", plane_strain, "Plane strain (a strip of half width --radius) instead of axisymmetric");
-  app.add_option("--nx", nx, "Nodes across the radius (half width)")->check(CLI::Range(3, 2000));
-  app.add_option("--ny", ny, "Nodes along the height")->check(CLI::Range(3, 2000));
-  app.add_option("--steps", steps, "Time steps")->check(CLI::Range(1, 100000));
-  app.add_option("--dt", dt, "Time step")->check(CLI::PositiveNumber);
-  app.add_option("--radius", radius, "Billet radius (half width in plane strain)")->check(CLI::PositiveNumber);
-  app.add_option("--height", height, "Billet height")->check(CLI::PositiveNumber);
-  app.add_option("--velocity", V, "Top plate speed")->check(CLI::PositiveNumber);
-  app.add_option("--gamma", gamma, "Max-ent locality gamma")->check(CLI::PositiveNumber);
-  app.add_option("--tol0", tol0, "Max-ent support cut-off on the prior weight")
-      ->check(CLI::Range(1e-300, 0.5));
-  app.add_option("--Cs", Cs, "Stabilization constant Cs (Eq. 14)")->check(CLI::NonNegativeNumber);
-  app.add_option("--alpha", alpha, "Alpha-shape parameter (circumradius <= alpha h)")->check(CLI::PositiveNumber);
-  app.add_option("--mu0", mu0, "Norton-Hoff mu0")->check(CLI::PositiveNumber);
-  app.add_option("--n", n, "Norton-Hoff exponent n")->check(CLI::PositiveNumber);
-  app.add_option("--vtu-every", vtu_every, "Write a VTU every this many steps (and at steps 1, mid, last)")
+};
+
+void add_options(CLI::App& app, Options& o) {
+  app.add_flag("--plane-strain", o.plane_strain, "Plane strain (a strip of half width --radius) instead of axisymmetric");
+  app.add_option("--nx", o.nx, "Nodes across the radius (half width)")->check(CLI::Range(3, 2000));
+  app.add_option("--ny", o.ny, "Nodes along the height")->check(CLI::Range(3, 2000));
+  app.add_option("--steps", o.steps, "Time steps")->check(CLI::Range(1, 100000));
+  app.add_option("--dt", o.dt, "Time step")->check(CLI::PositiveNumber);
+  app.add_option("--radius", o.radius, "Billet radius (half width in plane strain)")->check(CLI::PositiveNumber);
+  app.add_option("--height", o.height, "Billet height")->check(CLI::PositiveNumber);
+  app.add_option("--velocity", o.V, "Top plate speed")->check(CLI::PositiveNumber);
+  app.add_option("--gamma", o.gamma, "Max-ent locality gamma")->check(CLI::PositiveNumber);
+  app.add_option("--tol0", o.tol0, "Max-ent support cut-off on the prior weight")->check(CLI::Range(1e-300, 0.5));
+  app.add_option("--Cs", o.Cs, "Stabilization constant Cs (Eq. 14)")->check(CLI::NonNegativeNumber);
+  app.add_option("--alpha", o.alpha, "Alpha-shape parameter (circumradius <= alpha h)")->check(CLI::PositiveNumber);
+  app.add_option("--mu0", o.mu0, "Norton-Hoff mu0")->check(CLI::PositiveNumber);
+  app.add_option("--n", o.n, "Norton-Hoff exponent n")->check(CLI::PositiveNumber);
+  app.add_option("--vtu-every", o.vtu_every, "Write a VTU every this many steps (and at steps 1, mid, last)")
       ->check(CLI::Range(1, 100000));
-  app.add_option("--node-update", node_update,
+  app.add_option("--node-update", o.node_update,
                  "How nodes move: euler (Eq. 18) or ab2 (Adams-Bashforth 2 on each node's velocity history)")
       ->check(CLI::IsMember({"euler", "ab2"}));
-  app.add_option("--out-dir", out, "Results folder");
-  app.add_flag("--no-plots", no_plots, "Skip the PNG figures");
-  app.add_option("--check", check, "Fail (exit 1) if the plate force misses the exact one by more than this");
-  CLI11_PARSE(app, argc, argv);
+  app.add_option("--out-dir", o.out, "Results folder");
+  app.add_flag("--no-plots", o.no_plots, "Skip the PNG figures");
+  app.add_option("--check", o.check, "Fail (exit 1) if the plate force misses the exact one by more than this");
+}
 
-  const bool axi = !plane_strain;
-  const fs::path dir(out);
+// The exact plate force (V2 axisymmetric, V1 plane strain) of a homogeneous
+// compression at plate speed V of a billet of height H and radius R.
+double exact_force(const NortonHoff& material, bool axi, double V, double H, double R) {
+  const double e = V / H, d = axi ? e : 2 * e / std::sqrt(3.0);
+  const double mu = material.viscosity(d).mu;
+  return axi ? 3 * mu * e * M_PI * R * R : 4 * mu * e * R;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  // 1. Options: every parameter of the case on the command line.
+  CLI::App app{"maxentflow E1: frictionless upsetting (paper Fig. 5)"};
+  Options o;
+  add_options(app, o);
+  CLI11_PARSE(app, argc, argv);
+  const bool axi = !o.plane_strain;
+  const fs::path dir(o.out);
   try {
-    Eigen::Matrix2Xd x(2, nx * ny);
-    for (int j = 0; j < ny; ++j)
-      for (int i = 0; i < nx; ++i) x.col(j * nx + i) << radius * i / (nx - 1), height * j / (ny - 1);
+    // 2. Nodes: a regular grid on the billet's half section (r or x, z).
+    Eigen::Matrix2Xd x(2, o.nx * o.ny);
+    for (int j = 0; j < o.ny; ++j)
+      for (int i = 0; i < o.nx; ++i) x.col(j * o.nx + i) << o.radius * i / (o.nx - 1), o.height * j / (o.ny - 1);
+
+    // 3. The stepper: max-ent basis (gamma), alpha-shape mesh, stabilized
+    //    flow (Cs), Norton-Hoff material with d_min far below V / H.
     StepperParams prm;
     prm.geometry = axi ? Geometry::axisymmetric : Geometry::plane_strain;
-    prm.dt = dt;
-    prm.gamma = gamma;
-    prm.tol0 = tol0;
-    prm.mesh.alpha = alpha;
-    prm.stabilization.Cs = Cs;
-    prm.node_update = node_update == "ab2" ? NodeUpdate::adams_bashforth2 : NodeUpdate::euler;
-    // d_min far below the process strain rate V / H (see NortonHoff).
-    const NortonHoff material(mu0, n, 1e-6 * V / height);
+    prm.dt = o.dt;
+    prm.gamma = o.gamma;
+    prm.tol0 = o.tol0;
+    prm.mesh.alpha = o.alpha;
+    prm.stabilization.Cs = o.Cs;
+    prm.node_update = o.node_update == "ab2" ? NodeUpdate::adams_bashforth2 : NodeUpdate::euler;
+    const NortonHoff material(o.mu0, o.n, 1e-6 * o.V / o.height);
     Stepper<NortonHoff> sim(x, material, prm);
-    const double wide = 100 * (radius + height);
+
+    // 4. Tools and conditions: two frictionless plates, the top one moving
+    //    down at V; v_r = 0 on the axis (v_x = 0 on the symmetry line).
+    const double wide = 100 * (o.radius + o.height);
     sim.add_tool(flat_plate("bottom plate", {0, 0}, {0, 1}, wide));
-    RigidTool top = flat_plate("top plate", {0, height}, {0, -1}, wide);
-    top.set_velocity({0, -V});
+    RigidTool top = flat_plate("top plate", {0, o.height}, {0, -1}, wide);
+    top.set_velocity({0, -o.V});
     sim.add_tool(top);
-    sim.add_velocity_condition({axi ? "axis" : "symmetry", on_line({0, 0}, {1, 0}, 1e-9 * radius),
-                                {1, 0}, 0.0});
+    sim.add_velocity_condition({axi ? "axis" : "symmetry", on_line({0, 0}, {1, 0}, 1e-9 * o.radius), {1, 0}, 0.0});
     sim.set_log(&std::cout);
+
+    // 5. March: each step's results, and the plate force against the exact
+    //    one on the solved configuration and on the continuum path
+    //    R^2 = R0^2 H0 / H (R = R0 H0 / H), which the nodes follow to O(dt^2)
+    //    with AB2, O(dt) with Eq. (18).
     ResultsWriter results(dir);
-    CsvTable exact({"step", "time", "stroke", "height", "radius", "force", "force_exact",
-                    "rel_error", "force_continuum"});
+    CsvTable exact({"step", "time", "stroke", "height", "radius", "force", "force_exact", "rel_error",
+                    "force_continuum"});
     double worst = 0, worst_path = 0, worst_volume = 0;
-    const double volume0 = axi ? M_PI * radius * radius * height : radius * height;
-    for (int k = 1; k <= steps; ++k) {
+    const double volume0 = axi ? M_PI * o.radius * o.radius * o.height : o.radius * o.height;
+    for (int k = 1; k <= o.steps; ++k) {
       const auto& r = sim.step();
-      const bool vtu = k == 1 || k == steps || k == (steps + 1) / 2 || k % vtu_every == 0;
-      results.record(sim, vtu);
-      // Exact force on the solved configuration (its measured height and radius).
+      results.record(sim, k == 1 || k == o.steps || k == (o.steps + 1) / 2 || k % o.vtu_every == 0);
       const auto& xs = sim.nodes_solved();
       const double H = xs.row(1).maxCoeff() - xs.row(1).minCoeff(), R = xs.row(0).maxCoeff();
-      const double e = V / H, d = axi ? e : 2 * e / std::sqrt(3.0);
-      const double mu = material.viscosity(d).mu;
-      const double F = axi ? 3 * mu * e * M_PI * R * R : 4 * mu * e * R;
-      // The continuum path R^2 = R0^2 H0 / H (R = R0 H0 / H): the nodes'
-      // path differs from it by O(dt^2) with AB2, O(dt) with Eq. (18).
-      const double Rc = axi ? radius * std::sqrt(height / H) : radius * height / H;
-      const double Fc = axi ? 3 * mu * e * M_PI * Rc * Rc : 4 * mu * e * Rc;
+      const double F = exact_force(material, axi, o.V, H, R);
+      const double Fc = exact_force(material, axi, o.V, H, axi ? o.radius * std::sqrt(o.height / H) : o.radius * o.height / H);
       const double Fh = r.tool_force[1].y(), err = std::abs(Fh - F) / F;
       worst = std::max(worst, err);
       worst_path = std::max(worst_path, std::abs(Fh - Fc) / Fc);
       worst_volume = std::max(worst_volume, std::abs((axi ? M_PI * R * R * H : R * H) / volume0 - 1));
-      exact.cell(k).cell(r.time - r.dt).cell(r.tool_stroke[1]).cell(H).cell(R).cell(Fh).cell(F)
-          .cell(err).cell(Fc);
+      exact.cell(k).cell(r.time - r.dt).cell(r.tool_stroke[1]).cell(H).cell(R).cell(Fh).cell(F).cell(err).cell(Fc);
       exact.end_row();
     }
     exact.write(dir / "exact.csv");
+
+    // 6. Report, figures (pressure maps, force against stroke with the exact
+    //    curve) and the --check.
     double total = 0;
     for (const auto& r : sim.history()) total += r.seconds;
-    std::cout << "upsetting: " << steps << " steps, " << x.cols() << " nodes, " << total
+    std::cout << "upsetting: " << o.steps << " steps, " << x.cols() << " nodes, " << total
               << " s; plate force vs exact (V" << (axi ? 2 : 1) << "): max relative error " << worst
               << "\n  against the continuum path: force " << worst_path << ", volume " << 100 * worst_volume
-              << " % (node update " << node_update << ")\nresults in " << dir << " (step.pvd: open in ParaView)\n";
-    if (!no_plots) {
+              << " % (node update " << o.node_update << ")\nresults in " << dir << " (step.pvd: open in ParaView)\n";
+    if (!o.no_plots) {
       std::ostringstream args;
-      const int mid = (steps + 1) / 2;
-      args << '"' << dir.string() << "\" --maps pressure:1," << mid << ',' << steps
-           << " velocity_y:" << steps << " --force-tool \"top plate\" --exact exact.csv";
+      const int mid = (o.steps + 1) / 2;
+      args << '"' << dir.string() << "\" --maps pressure:1," << mid << ',' << o.steps << " velocity_y:" << o.steps
+           << " --force-tool \"top plate\" --exact exact.csv";
       examples::run_plot_script(fs::path(MAXENTFLOW_EXAMPLE_DIR) / "../common/plot_forming.py", args.str());
     }
-    if (check >= 0 && !(worst <= check)) {
-      std::cerr << "check failed: plate force error " << worst << " > " << check << "\n";
+    if (o.check >= 0 && !(worst <= o.check)) {
+      std::cerr << "check failed: plate force error " << worst << " > " << o.check << "\n";
       return 1;
     }
   } catch (const Error& e) {

@@ -1,7 +1,6 @@
 #include <catch2/catch.hpp>
 
 #include <maxentflow/core/error.hpp>
-#include <maxentflow/core/traits.hpp>
 
 using maxentflow::Error;
 
@@ -17,12 +16,4 @@ TEST_CASE("Error carries what and where", "[core]") {
   }
   CHECK_NOTHROW(maxentflow::require(true, "never", "nowhere"));
   CHECK(maxentflow::detail::cat("x=", 0.5, " n=", 3) == "x=0.5 n=3");
-}
-
-TEST_CASE("Traits derive the exchange types from the dimension", "[core]") {
-  using T = maxentflow::Traits<2>;
-  STATIC_REQUIRE(T::dim == 2);
-  STATIC_REQUIRE(T::Point::RowsAtCompileTime == 2);
-  STATIC_REQUIRE(T::Points::RowsAtCompileTime == 2);
-  STATIC_REQUIRE(T::Points::ColsAtCompileTime == Eigen::Dynamic);
 }

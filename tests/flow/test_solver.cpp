@@ -228,6 +228,44 @@ TEST_CASE("Norton-Hoff viscosity and its derivative", "[flow][material]") {
 
 namespace {
 
+// A material defined outside the library that reads the point's position: a
+// block of two materials (the right half three times stronger).
+struct TwoZones {
+  NortonHoff left{150.0, 0.2, 1e-5}, right{450.0, 0.2, 1e-5};
+  double split = 2.0;
+  Viscosity viscosity(const MaterialPoint& point) const {
+    return (point.x.x() < split ? left : right).viscosity(point.d);
+  }
+};
+
+}  // namespace
+
+TEST_CASE("a material law gets the point state: strain rate and position", "[flow][material]") {
+  const double W = 4, H = 3, tol = 1e-9;
+  FlowProblem<TwoZones> P(block_nodes(13, 10, W, H, true), Geometry::plane_strain, TwoZones{});
+  P.velocity(on_line({0, 0}, {1, 0}, tol), {1, 0}, 0.0, "symmetry");
+  P.velocity(on_line({0, 0}, {0, 1}, tol), {0, 1}, 0.0, "bottom");
+  P.velocity(on_line({0, H}, {0, 1}, tol), {0, 1}, -0.1, "top");
+  NonlinearSolver<> solver;
+  Eigen::VectorXd X;
+  solver.solve(*P.system, X);
+  const FlowPointState st = P.system->point_state(X);
+  const auto& xq = P.disc.points();
+  int left = 0, right = 0;
+  double worst = 0;
+  for (Eigen::Index g = 0; g < xq.cols(); ++g) {
+    const bool is_left = xq(0, g) < 2.0;
+    (is_left ? left : right) += 1;
+    const double mu = (is_left ? TwoZones{}.left : TwoZones{}.right).viscosity(st.d[g]).mu;
+    worst = std::max(worst, std::abs(st.mu[g] - mu) / mu);
+  }
+  CHECK(left > 0);
+  CHECK(right > 0);
+  CHECK(worst < 1e-14);
+}
+
+namespace {
+
 // A 1-D convection-diffusion matrix: unsymmetric, and with a Jacobi
 // preconditioner GMRES needs far more than a few iterations.
 Eigen::SparseMatrix<double> convection_diffusion(int n) {

@@ -9,6 +9,7 @@
 
 #include <maxentflow/mesh/integration_mesh.hpp>
 #include <maxentflow/mesh/nodal_spacing.hpp>
+#include <maxentflow/mesh/nodal_spacing_3.hpp>
 
 using maxentflow::Error;
 

@@ -33,7 +33,7 @@ namespace maxentflow {
 /// sticking; the active set reads the normal multipliers only.
 class ToolContact {
  public:
-  using Mesh = IntegrationMesh<Traits<2>>;
+  using Mesh = IntegrationMesh<2>;
 
   struct params {
     double gap_tol = 1e-3;      ///< in contact when g_n <= gap_tol * h_a

@@ -29,7 +29,7 @@ namespace maxentflow {
 /// for the post-processing; move() the tools at the end of the step.
 class ContactSet {
  public:
-  using Mesh = IntegrationMesh<Traits<2>>;
+  using Mesh = IntegrationMesh<2>;
 
   explicit ContactSet(ToolContact::params prm = {}) : prm_(prm) {}
 

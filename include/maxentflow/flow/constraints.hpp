@@ -61,7 +61,7 @@ struct HatIntegrals {
 /// The one place where hat-multiplier rows are integrated (velocity conditions,
 /// tool contact).
 template <class Keep, class Direction, class Value>
-std::map<int, HatIntegrals> hat_integrals(const IntegrationMesh<Traits<2>>& mesh, const FlowDiscretization& disc,
+std::map<int, HatIntegrals> hat_integrals(const IntegrationMesh<2>& mesh, const FlowDiscretization& disc,
                                           Keep&& keep, Direction&& direction, Value&& value) {
   std::map<int, HatIntegrals> out;
   const auto& edges = mesh.edges();
@@ -99,7 +99,7 @@ std::map<int, HatIntegrals> hat_integrals(const IntegrationMesh<Traits<2>>& mesh
 /// (a plate, a symmetry line, a tool), with the reaction on each part.
 class ConstraintSet {
  public:
-  using Mesh = IntegrationMesh<Traits<2>>;
+  using Mesh = IntegrationMesh<2>;
   using Value = std::function<double(const Eigen::Vector2d&)>;
 
   int add_part(const std::string& name) {

@@ -40,7 +40,7 @@ struct FlowDiscretizationParams {
 /// and int_T r dp/dz = int_dT p n_z r, with |T| replaced by int_T r.
 class FlowDiscretization {
  public:
-  using Mesh = IntegrationMesh<Traits<2>>;
+  using Mesh = IntegrationMesh<2>;
   using Basis = MaxEntBasis<2>;
 
   using params = FlowDiscretizationParams;
@@ -105,6 +105,14 @@ class FlowDiscretization {
   double divergence_defect(const Mesh& mesh) const;
 
  private:
+  // The build's phases (Eq. 19's cell sets, the basis at the Gauss points, and
+  // the consistent-integration correction of the gradients).
+  std::vector<std::vector<int>> cell_unions(const Mesh& mesh, const BasisTable<2>& cell_basis) const;
+  double fill_cell(int t, const std::vector<int>& u, const BasisTable<2>& cell_basis, const Eigen::VectorXd& wq_of,
+                   const Eigen::VectorXd& h);
+  void correct_gradients(int t, const std::vector<int>& u, const Mesh& mesh, const Eigen::VectorXd& wq_of,
+                         double measure, std::vector<double>& boundary_integral);
+
   params prm_;
   Geometry geometry_ = Geometry::plane_strain;
   int n_nodes_ = 0, nq_ = 0, ne_ = 0;
@@ -124,18 +132,18 @@ inline void FlowDiscretization::build(const Mesh& mesh, const Basis& basis, Geom
   prm_ = prm;
   geometry_ = g;
   n_nodes_ = static_cast<int>(mesh.number_of_nodes());
-  const bool axi = axisymmetric();
   const TriangleRule& trule = triangle_rule(prm.triangle_points);
   const SegmentRule& srule = segment_rule(prm.segment_points);
   nq_ = static_cast<int>(trule.weight.size());
   ne_ = static_cast<int>(srule.weight.size());
 
+  // 1. Gauss points of the cells and edges, and the basis there.
   const auto cq = mesh.cell_quadrature(trule, false);
   const auto eq = mesh.edge_quadrature(srule, false);
   x_ = cq.x;
   edge_x_ = eq.x;
   edge_w_ = eq.w;
-  if (axi)
+  if (axisymmetric())
     for (Eigen::Index k = 0; k < x_.cols(); ++k)
       MAXENTFLOW_REQUIRE(x_(0, k) > 0,
                          detail::cat("axisymmetric Gauss point at r = ", x_(0, k),
@@ -144,10 +152,39 @@ inline void FlowDiscretization::build(const Mesh& mesh, const Basis& basis, Geom
   const BasisTable<2> cell_basis = basis.evaluate(x_, true);
   basis.evaluate(edge_x_, edge_basis_, false);
 
+  // 2. U_T of every cell, and storage for its values and gradients.
   const int nt = static_cast<int>(mesh.number_of_triangles());
-  const auto& h = basis.h();
+  const std::vector<std::vector<int>> unions = cell_unions(mesh, cell_basis);
+  node_offset_.assign(static_cast<std::size_t>(nt) + 1, 0);
+  value_offset_.assign(static_cast<std::size_t>(nt) + 1, 0);
+  for (int t = 0; t < nt; ++t) {
+    const int n = static_cast<int>(unions[static_cast<std::size_t>(t)].size());
+    node_offset_[t + 1] = node_offset_[t] + n;
+    value_offset_[t + 1] = value_offset_[t] + n * nq_;
+  }
+  node_.resize(static_cast<std::size_t>(node_offset_.back()));
+  p_.assign(static_cast<std::size_t>(value_offset_.back()), 0.0);
+  dp_.assign(2 * static_cast<std::size_t>(value_offset_.back()), 0.0);
+  w_.resize(static_cast<std::size_t>(nt * nq_));
+  rho_.resize(static_cast<std::size_t>(nt * nq_));
 
-  // Pass 1: U_T of every triangle (parallel, per-thread scratch).
+  // 3. Values, gradients, rho, weights; then the gradient correction.
+#pragma omp parallel
+  {
+    std::vector<double> boundary_integral;  // int_dT p_a n (r), 2 per node of U_T
+#pragma omp for schedule(dynamic, 256)
+    for (int t = 0; t < nt; ++t) {
+      const auto& u = unions[static_cast<std::size_t>(t)];
+      std::copy(u.begin(), u.end(), node_.begin() + node_offset_[t]);
+      const double measure = fill_cell(t, u, cell_basis, cq.w, basis.h());
+      if (prm_.consistent_integration) correct_gradients(t, u, mesh, cq.w, measure, boundary_integral);
+    }
+  }
+}
+
+inline std::vector<std::vector<int>> FlowDiscretization::cell_unions(const Mesh& mesh,
+                                                                     const BasisTable<2>& cell_basis) const {
+  const int nt = static_cast<int>(mesh.number_of_triangles());
   std::vector<std::vector<int>> unions(static_cast<std::size_t>(nt));
 #pragma omp parallel
   {
@@ -172,95 +209,84 @@ inline void FlowDiscretization::build(const Mesh& mesh, const Basis& basis, Geom
       std::sort(u.begin(), u.end());
     }
   }
-  node_offset_.assign(static_cast<std::size_t>(nt) + 1, 0);
-  value_offset_.assign(static_cast<std::size_t>(nt) + 1, 0);
-  for (int t = 0; t < nt; ++t) {
-    const int n = static_cast<int>(unions[static_cast<std::size_t>(t)].size());
-    node_offset_[t + 1] = node_offset_[t] + n;
-    value_offset_[t + 1] = value_offset_[t] + n * nq_;
-  }
-  node_.resize(static_cast<std::size_t>(node_offset_.back()));
-  p_.assign(static_cast<std::size_t>(value_offset_.back()), 0.0);
-  dp_.assign(2 * static_cast<std::size_t>(value_offset_.back()), 0.0);
-  w_.resize(static_cast<std::size_t>(nt * nq_));
-  rho_.resize(static_cast<std::size_t>(nt * nq_));
+  return unions;
+}
 
+inline double FlowDiscretization::fill_cell(int t, const std::vector<int>& u, const BasisTable<2>& cell_basis,
+                                            const Eigen::VectorXd& wq_of, const Eigen::VectorXd& h) {
   constexpr double two_pi = 6.283185307179586476925;
-  const auto& edges = mesh.edges();
+  const bool axi = axisymmetric();
+  const int n = static_cast<int>(u.size());
+  double* p = p_.data() + value_offset_[t];
+  double* dp = dp_.data() + 2 * value_offset_[t];
+  double measure = 0.0;  // |T| or int_T r
+  for (int q = 0; q < nq_; ++q) {
+    const int gq = t * nq_ + q;
+    const auto s = cell_basis.nodes(gq);
+    const auto v = cell_basis.values(gq);
+    const auto grad = cell_basis.gradients(gq);
+    double hsum = 0.0;
+    for (std::size_t j = 0; j < s.size(); ++j) {
+      const int i = static_cast<int>(std::lower_bound(u.begin(), u.end(), s[j]) - u.begin());
+      p[q * n + i] = v[j];
+      dp[2 * (q * n + i)] = grad(0, static_cast<Eigen::Index>(j));
+      dp[2 * (q * n + i) + 1] = grad(1, static_cast<Eigen::Index>(j));
+      hsum += h(s[j]);
+    }
+    rho_[static_cast<std::size_t>(gq)] = hsum / static_cast<double>(s.size());
+    const double r = x_(0, gq);
+    const double wq = wq_of(gq);
+    measure += axi ? wq * r : wq;
+    w_[static_cast<std::size_t>(gq)] = axi ? wq * two_pi * r : wq;
+  }
+  return measure;
+}
+
+inline void FlowDiscretization::correct_gradients(int t, const std::vector<int>& u, const Mesh& mesh,
+                                                  const Eigen::VectorXd& wq_of, double measure,
+                                                  std::vector<double>& boundary_integral) {
+  const bool axi = axisymmetric();
+  const int n = static_cast<int>(u.size());
+  double* p = p_.data() + value_offset_[t];
+  double* dp = dp_.data() + 2 * value_offset_[t];
   const auto& X = mesh.nodes();
-  // Pass 2: values, gradients, correction, rho, weights.
-#pragma omp parallel
-  {
-    std::vector<double> boundary_integral;  // int_dT p_a n (r), 2 per node of U_T
-#pragma omp for schedule(dynamic, 256)
-    for (int t = 0; t < nt; ++t) {
-      const auto& u = unions[static_cast<std::size_t>(t)];
-      std::copy(u.begin(), u.end(), node_.begin() + node_offset_[t]);
-      const int n = static_cast<int>(u.size());
-      auto position = [&](int a) {
-        return static_cast<int>(std::lower_bound(u.begin(), u.end(), a) - u.begin());
-      };
-      double* p = p_.data() + value_offset_[t];
-      double* dp = dp_.data() + 2 * value_offset_[t];
-      double measure = 0.0;  // |T| or int_T r
-      for (int q = 0; q < nq_; ++q) {
-        const int gq = t * nq_ + q;
-        const auto s = cell_basis.nodes(gq);
-        const auto v = cell_basis.values(gq);
-        const auto grad = cell_basis.gradients(gq);
-        double hsum = 0.0;
-        for (std::size_t j = 0; j < s.size(); ++j) {
-          const int i = position(s[j]);
-          p[q * n + i] = v[j];
-          dp[2 * (q * n + i)] = grad(0, static_cast<Eigen::Index>(j));
-          dp[2 * (q * n + i) + 1] = grad(1, static_cast<Eigen::Index>(j));
-          hsum += h(s[j]);
-        }
-        rho_[static_cast<std::size_t>(gq)] = hsum / static_cast<double>(s.size());
-        const double r = x_(0, gq);
-        const double wq = cq.w(gq);
-        measure += axi ? wq * r : wq;
-        w_[static_cast<std::size_t>(gq)] = axi ? wq * two_pi * r : wq;
+  boundary_integral.assign(2 * static_cast<std::size_t>(n), 0.0);
+  const auto& tri = mesh.triangles()[static_cast<std::size_t>(t)];
+  for (int i = 0; i < 3; ++i) {
+    const int e = mesh.triangle_edge(t, i);
+    const auto& edge = mesh.edges()[static_cast<std::size_t>(e)];
+    // Outward normal of T on this edge: away from the opposite vertex.
+    const Eigen::Vector2d d = X.col(edge.b) - X.col(edge.a);
+    Eigen::Vector2d nrm(d.y(), -d.x());
+    nrm.normalize();
+    if (nrm.dot(X.col(tri[static_cast<std::size_t>(i)]) - X.col(edge.a)) > 0) nrm = -nrm;
+    for (int k = 0; k < ne_; ++k) {
+      const int ge = e * ne_ + k;
+      const double wk = edge_w_(ge) * (axi ? edge_x_(0, ge) : 1.0);
+      const auto s = edge_basis_.nodes(ge);
+      const auto v = edge_basis_.values(ge);
+      for (std::size_t j = 0; j < s.size(); ++j) {
+        const auto a = static_cast<std::size_t>(std::lower_bound(u.begin(), u.end(), s[j]) - u.begin());
+        boundary_integral[2 * a] += wk * v[j] * nrm.x();
+        boundary_integral[2 * a + 1] += wk * v[j] * nrm.y();
       }
-      if (!prm_.consistent_integration) continue;
-      boundary_integral.assign(2 * static_cast<std::size_t>(n), 0.0);
-      const auto& tri = mesh.triangles()[static_cast<std::size_t>(t)];
-      for (int i = 0; i < 3; ++i) {
-        const int e = mesh.triangle_edge(t, i);
-        const auto& edge = edges[static_cast<std::size_t>(e)];
-        // Outward normal of T on this edge: away from the opposite vertex.
-        const Eigen::Vector2d d = X.col(edge.b) - X.col(edge.a);
-        Eigen::Vector2d nrm(d.y(), -d.x());
-        nrm.normalize();
-        if (nrm.dot(X.col(tri[static_cast<std::size_t>(i)]) - X.col(edge.a)) > 0) nrm = -nrm;
-        for (int k = 0; k < ne_; ++k) {
-          const int ge = e * ne_ + k;
-          const double wk = edge_w_(ge) * (axi ? edge_x_(0, ge) : 1.0);
-          const auto s = edge_basis_.nodes(ge);
-          const auto v = edge_basis_.values(ge);
-          for (std::size_t j = 0; j < s.size(); ++j) {
-            const int a = position(s[j]);
-            boundary_integral[2 * static_cast<std::size_t>(a)] += wk * v[j] * nrm.x();
-            boundary_integral[2 * static_cast<std::size_t>(a) + 1] += wk * v[j] * nrm.y();
-          }
-        }
-      }
-      for (int i = 0; i < n; ++i) {
-        double cx = boundary_integral[2 * static_cast<std::size_t>(i)];
-        double cy = boundary_integral[2 * static_cast<std::size_t>(i) + 1];
-        for (int q = 0; q < nq_; ++q) {
-          const double wq = cq.w(t * nq_ + q);
-          const double r = axi ? x_(0, t * nq_ + q) : 1.0;
-          cx -= wq * (r * dp[2 * (q * n + i)] + (axi ? p[q * n + i] : 0.0));
-          cy -= wq * r * dp[2 * (q * n + i) + 1];
-        }
-        cx /= measure;
-        cy /= measure;
-        for (int q = 0; q < nq_; ++q) {
-          dp[2 * (q * n + i)] += cx;
-          dp[2 * (q * n + i) + 1] += cy;
-        }
-      }
+    }
+  }
+  // dp += (int_dT p n - int_T grad p) / |T|, the same for every point of T.
+  for (int i = 0; i < n; ++i) {
+    double cx = boundary_integral[2 * static_cast<std::size_t>(i)];
+    double cy = boundary_integral[2 * static_cast<std::size_t>(i) + 1];
+    for (int q = 0; q < nq_; ++q) {
+      const double wq = wq_of(t * nq_ + q);
+      const double r = axi ? x_(0, t * nq_ + q) : 1.0;
+      cx -= wq * (r * dp[2 * (q * n + i)] + (axi ? p[q * n + i] : 0.0));
+      cy -= wq * r * dp[2 * (q * n + i) + 1];
+    }
+    cx /= measure;
+    cy /= measure;
+    for (int q = 0; q < nq_; ++q) {
+      dp[2 * (q * n + i)] += cx;
+      dp[2 * (q * n + i) + 1] += cy;
     }
   }
 }

@@ -28,7 +28,7 @@ class FlowSystem {
  public:
   using Assembler = StabilizedFlowAssembler<Material>;
   using Matrix = SystemPattern::Matrix;
-  using Mesh = IntegrationMesh<Traits<2>>;
+  using Mesh = IntegrationMesh<2>;
   using Traction = std::function<Eigen::Vector2d(const Eigen::Vector2d&)>;
 
   FlowSystem(const Mesh& mesh, const FlowDiscretization& disc, Material material,
@@ -149,23 +149,13 @@ class FlowSystem {
     update_structure();
     require(X.size() == pattern_.size() && v.size() == pattern_.size(),
             detail::cat("X and v need ", pattern_.size(), " entries"), "FlowSystem::apply_tangent");
-    const int nv = DofLayout::fields_of(number_of_nodes());
     if (!(linearized_at_.size() == X.size() && linearized_at_ == X)) {  // a new X: new point operators
       assembler_.linearize(X);
       linearized_at_ = X;
     }
     Jv.setZero(pattern_.size());
     assembler_.apply_tangent(v, Jv);
-    const auto& rows = constraints_.rows();
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-      const double lambda = v[nv + static_cast<Eigen::Index>(i)];
-      double g = 0.0;
-      for (std::size_t k = 0; k < rows[i].dof.size(); ++k) {
-        Jv[rows[i].dof[k]] += rows[i].coef[k] * lambda;
-        g += rows[i].coef[k] * v[rows[i].dof[k]];
-      }
-      Jv[nv + static_cast<Eigen::Index>(i)] = g;
-    }
+    add_multiplier_terms(v, false, Jv);
   }
 
   void residual(const Eigen::VectorXd& X, Eigen::VectorXd& R) {
@@ -178,7 +168,7 @@ class FlowSystem {
     const int nv = DofLayout::fields_of(number_of_nodes());
     double r2 = 0.0;
     for (int k = 0; k < nv; ++k)
-      if (k % 3 != 2) r2 += R[k] * R[k];
+      if (k % DofLayout::per_node != 2) r2 += R[k] * R[k];
     return std::sqrt(r2) / force_scale_;
   }
   /// Max-norm of the velocity part of X.
@@ -255,20 +245,27 @@ class FlowSystem {
     Eigen::VectorXd fint = Eigen::VectorXd::Zero(nv);
     assembler_.assemble(X, kind, pattern_, A, R, &fint);
     R.head(nv) -= traction_;
-    const auto& rows = constraints_.rows();
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-      const double lambda = X[nv + static_cast<Eigen::Index>(i)];
-      double g = -rows[i].rhs;
-      for (std::size_t k = 0; k < rows[i].dof.size(); ++k) {
-        R[rows[i].dof[k]] += rows[i].coef[k] * lambda;
-        g += rows[i].coef[k] * X[rows[i].dof[k]];
-      }
-      R[nv + static_cast<Eigen::Index>(i)] = g;
-    }
+    add_multiplier_terms(X, true, R);
     force_scale_ = fint.norm() + traction_.norm();
     if (!(force_scale_ > 0)) force_scale_ = 1.0;
     MAXENTFLOW_REQUIRE(R.allFinite(), "the residual is not finite (NaN or Inf in the fields)",
                        "FlowSystem::residual");
+  }
+
+  // The multiplier rows of Eq. (21) applied to Y: out_fields += L^T lambda and
+  // out_i = L_i Y (- rhs_i for the residual, not for the tangent).
+  void add_multiplier_terms(const Eigen::VectorXd& Y, bool minus_rhs, Eigen::VectorXd& out) const {
+    const int nv = DofLayout::fields_of(number_of_nodes());
+    const auto& rows = constraints_.rows();
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      const double lambda = Y[nv + static_cast<Eigen::Index>(i)];
+      double g = minus_rhs ? -rows[i].rhs : 0.0;
+      for (std::size_t k = 0; k < rows[i].dof.size(); ++k) {
+        out[rows[i].dof[k]] += rows[i].coef[k] * lambda;
+        g += rows[i].coef[k] * Y[rows[i].dof[k]];
+      }
+      out[nv + static_cast<Eigen::Index>(i)] = g;
+    }
   }
 
   const Mesh* mesh_;

@@ -86,7 +86,7 @@ class SystemPattern {
   /// `dof` list, ascending); cheap, so contact can change its active set.
   template <class Rows>
   void set_constraints(const Rows& rows) {
-    const int nv = 3 * n_nodes_;
+    const int nf = DofLayout::per_node, nv = DofLayout::fields_of(n_nodes_);
     const int m = static_cast<int>(rows.size());
     n_ = nv + m;
     // multiplier rows per velocity/pressure column
@@ -104,9 +104,9 @@ class SystemPattern {
     A_.resize(n_, n_);
     std::vector<int> outer(static_cast<std::size_t>(n_) + 1, 0);
     for (int b = 0; b < n_nodes_; ++b)
-      for (int c = 0; c < 3; ++c) {
-        const int j = 3 * b + c;
-        outer[j + 1] = outer[j] + 3 * (adj_offset_[b + 1] - adj_offset_[b]) + (extra[j + 1] - extra[j]);
+      for (int c = 0; c < nf; ++c) {
+        const int j = nf * b + c;
+        outer[j + 1] = outer[j] + nf * (adj_offset_[b + 1] - adj_offset_[b]) + (extra[j + 1] - extra[j]);
       }
     for (int i = 0; i < m; ++i)
       outer[nv + i + 1] = outer[nv + i] + static_cast<int>(rows[static_cast<std::size_t>(i)].dof.size());
@@ -114,11 +114,11 @@ class SystemPattern {
     std::copy(outer.begin(), outer.end(), A_.outerIndexPtr());
     int* inner = A_.innerIndexPtr();
     for (int b = 0; b < n_nodes_; ++b)
-      for (int c = 0; c < 3; ++c) {
-        const int j = 3 * b + c;
+      for (int c = 0; c < nf; ++c) {
+        const int j = nf * b + c;
         int k = outer[j];
         for (int q = adj_offset_[b]; q < adj_offset_[b + 1]; ++q)
-          for (int cc = 0; cc < 3; ++cc) inner[k++] = 3 * adj_[static_cast<std::size_t>(q)] + cc;
+          for (int cc = 0; cc < nf; ++cc) inner[k++] = nf * adj_[static_cast<std::size_t>(q)] + cc;
         for (int q = extra[j]; q < extra[j + 1]; ++q) inner[k++] = extra_row[static_cast<std::size_t>(q)];
       }
     for (int i = 0; i < m; ++i) {
@@ -222,6 +222,7 @@ class StabilizedFlowAssembler {
 
  private:
   static constexpr double two_thirds = 2.0 / 3.0;
+  static constexpr int nf = DofLayout::per_node;  // v_x, v_y, p interleaved
   using PointOperator = Eigen::Matrix<double, 7, 7>;
 
   // The constitutive state at one Gauss point from z = [strain rate rows
@@ -239,7 +240,7 @@ class StabilizedFlowAssembler {
     for (int k = 0; k < ns + 3; ++k) z[k] = 0.0;
     for (std::size_t i = 0; i < u.size(); ++i) {
       const int a = u[i];
-      const double vx = Y[3 * a], vy = Y[3 * a + 1], pa = Y[3 * a + 2];
+      const double vx = Y[nf * a], vy = Y[nf * a + 1], pa = Y[nf * a + 2];
       const double gx = dp[2 * i], gy = dp[2 * i + 1];
       z[0] += gx * vx;
       z[1] += gy * vy;
@@ -252,6 +253,7 @@ class StabilizedFlowAssembler {
     if (axi) z[2] = ett / r;  // hoop strain rate v_r / r
   }
   PointLaw point_law(const double* z, int ns, double rho, const Eigen::Vector2d& bs, int g) const {
+    const FlowDiscretization& disc = *disc_;
     PointLaw L;
     double eQe = 0.0;
     L.div = 0.0;
@@ -262,7 +264,7 @@ class StabilizedFlowAssembler {
       L.div += L.m[k] * z[k];
     }
     L.d = std::sqrt(std::max(0.0, two_thirds * eQe));
-    const Viscosity visc = material_.viscosity(L.d);
+    const Viscosity visc = material_.viscosity(MaterialPoint{L.d, disc.points().col(g)});
     L.mu = visc.mu;
     L.dmu_dd_over_d = visc.dmu_dd_over_d;
     MAXENTFLOW_REQUIRE(std::isfinite(L.mu) && L.mu > 0,
@@ -302,11 +304,37 @@ class StabilizedFlowAssembler {
     const double yt = axi ? y[2] / r : 0.0;
     for (int i = 0; i < n; ++i) {
       const double gx = dp[2 * i], gy = dp[2 * i + 1];
-      out[3 * i] += gx * y[0] + p[i] * yt + gy * y[ns - 1];
-      out[3 * i + 1] += gy * y[1] + gx * y[ns - 1];
-      out[3 * i + 2] += p[i] * y[ns] + gx * y[ns + 1] + gy * y[ns + 2];
+      out[nf * i] += gx * y[0] + p[i] * yt + gy * y[ns - 1];
+      out[nf * i + 1] += gy * y[1] + gx * y[ns - 1];
+      out[nf * i + 2] += p[i] * y[ns] + gx * y[ns + 1] + gy * y[ns + 2];
     }
   }
+
+  // A thread's work space for one cell: A_loc = sum_q O_q^T D_q O_q with O_q
+  // the point operator (strain rows, phi, grad phi) of every local dof.
+  // Column nf i + c of O_q is nonzero only in the rows of component c (v_x:
+  // eps_xx, (eps_tt), gamma_xy; v_y: eps_yy, gamma_xy; p: phi, grad phi), so
+  // the rows nf i + c of A_loc are Oc[c]^T Tc[c]: Oc[c] those rows of O stacked
+  // over q (one column per node), Tc[c] the same rows of T = D O. A third of
+  // the dense product's work.
+  struct CellWork {
+    CellWork(bool axi_, bool newton_, bool matrix_)
+        : axi(axi_), newton(newton_), matrix(matrix_), ns(axi_ ? 4 : 3),
+          rows_of{axi_ ? 3 : 2, 2, 3},
+          row_index{{0, axi_ ? 2 : ns - 1, ns - 1}, {1, ns - 1, 0}, {ns, ns + 1, ns + 2}} {}
+    bool axi, newton, matrix;
+    int ns;  // strain rows: eps_xx, eps_yy, (eps_tt), gamma_xy
+    int rows_of[nf];
+    int row_index[nf][3];
+    Eigen::MatrixXd Oc[nf], Tc[nf], Ac[nf], Tq;
+    Eigen::VectorXd rloc, floc;
+    std::vector<int> kpos;
+    PointOperator Dq;
+  };
+  void integrate_cell(int t, const Eigen::VectorXd& X, CellWork& cw, FlowPointState* state) const;
+  static void point_matrix_rows(int q, int n, const double* p, const double* dp, double r, CellWork& cw);
+  static void scatter_cell(std::span<const int> u, CellWork& cw, int lo, int hi, const SystemPattern& pat,
+                           Matrix* A, Eigen::VectorXd& R, Eigen::VectorXd* fint);
 
   const FlowDiscretization* disc_;
   Material material_;
@@ -328,150 +356,150 @@ void StabilizedFlowAssembler<Material>::assemble(const Eigen::VectorXd& X, Linea
                                                  FlowPointState* state) const {
   const FlowDiscretization& disc = *disc_;
   const int N = disc.number_of_nodes();
-  const bool axi = disc.axisymmetric();
-  const bool newton = kind == Linearization::newton;
-  const int ns = axi ? 4 : 3;  // strain rows: eps_xx, eps_yy, (eps_tt), gamma_xy
-  const int nr = ns + 3;       // + phi row (pressure) + two grad(phi) rows
-  const int nq = disc.points_per_cell();
-  const int ncell = disc.cells();
-  require(X.size() >= 3 * N && R.size() >= 3 * N, "X and R need 3 entries per node",
+  require(X.size() >= nf * N && R.size() >= nf * N, "X and R need 3 entries per node",
           "StabilizedFlowAssembler::assemble");
   if (state) {
-    const auto np = static_cast<Eigen::Index>(ncell) * nq;
-    state->d.resize(np);
-    state->mu.resize(np);
-    state->tau.resize(np);
-    state->p.resize(np);
-    state->div.resize(np);
+    const auto np = static_cast<Eigen::Index>(disc.cells()) * disc.points_per_cell();
+    for (Eigen::VectorXd* f : {&state->d, &state->mu, &state->tau, &state->p, &state->div}) f->resize(np);
   }
   const int threads = std::max(1, std::min(max_threads(), N / 64 + 1));
-  double* values = A ? A->valuePtr() : nullptr;
-  const int* outer = A ? A->outerIndexPtr() : nullptr;
-
 #pragma omp parallel num_threads(threads)
   {
     const int tid = thread_id(), nth = team_size();
     const int lo = static_cast<int>(static_cast<long>(N) * tid / nth);
     const int hi = static_cast<int>(static_cast<long>(N) * (tid + 1) / nth);
-    // A_loc = sum_q O_q^T D_q O_q with O_q the point operator (strain rows, phi,
-    // grad phi) of every local dof. Column 3i+c of O_q is nonzero only in the
-    // rows of component c (v_x: eps_xx, (eps_tt), gamma_xy; v_y: eps_yy,
-    // gamma_xy; p: phi, grad phi), so the rows 3i+c of A_loc are
-    // Oc[c]^T Tc[c]: Oc[c] those rows of O stacked over q (one column per node),
-    // Tc[c] the same rows of T = D O. A third of the dense product's work.
-    const int rows_of[3] = {axi ? 3 : 2, 2, 3};
-    int row_index[3][3] = {{0, axi ? 2 : ns - 1, ns - 1}, {1, ns - 1, 0}, {ns, ns + 1, ns + 2}};
-    Eigen::MatrixXd Oc[3], Tc[3], Ac[3];
-    Eigen::MatrixXd Tq;
-    Eigen::VectorXd rloc, floc;
-    std::vector<int> kpos;
-    PointOperator Dq;
-    double y[7];  // plain arrays: tiny, and no AVX-512 false positives in GCC 12
-    for (int t = 0; t < ncell; ++t) {
+    CellWork cw(disc.axisymmetric(), kind == Linearization::newton, A != nullptr);
+    for (int t = 0; t < disc.cells(); ++t) {
       const auto u = disc.nodes(t);
       if (u.back() < lo || u.front() >= hi) continue;
-      const int n = static_cast<int>(u.size()), nd = 3 * n;
-      rloc.setZero(nd);
-      floc.setZero(nd);
-      if (A) {
-        for (int c = 0; c < 3; ++c) {
-          Oc[c].resize(nq * rows_of[c], n);
-          Tc[c].resize(nq * rows_of[c], nd);
-        }
-        Tq.resize(nr, nd);
-      }
-      for (int q = 0; q < nq; ++q) {
-        const int g = t * nq + q;
-        const double* p = disc.values(t, q);
-        const double* dp = disc.gradients(t, q);
-        const double w = disc.weight(g);
-        const double r = disc.points()(0, g);
-        // Current fields at the point: strain rate, pressure, grad p.
-        double z[7];
-        point_rows(u, p, dp, r, axi, ns, X, z);
-        const Eigen::Vector2d b = body_ ? body_(disc.points().col(g)) : Eigen::Vector2d::Zero();
-        const Eigen::Vector2d bs = prm_.stabilize_body_force ? b : Eigen::Vector2d::Zero();
-        const PointLaw L = point_law(z, ns, disc.rho(g), bs, g);
-        if (state && u.front() >= lo) {  // one thread writes each point
-          state->d[g] = L.d;
-          state->mu[g] = L.mu;
-          state->tau[g] = L.tau;
-          state->p[g] = L.pq;
-          state->div[g] = L.div;
-        }
-        // Residual: strain rows w (2 mu Q eps - p m); phi row -w div v;
-        // grad rows -w tau (grad p - f)  (Eq. 13 with the sign of Eq. 21).
-        for (int k = 0; k < ns; ++k) y[k] = w * (2.0 * L.mu * L.Qeps[k] - L.pq * L.m[k]);
-        y[ns] = -w * L.div;
-        y[ns + 1] = -w * L.tau * L.sx;
-        y[ns + 2] = -w * L.tau * L.sy;
-        add_transposed(y, p, dp, n, r, axi, ns, rloc);
-        for (int i = 0; i < n; ++i) {  // the body force
-          floc[3 * i] -= w * p[i] * b.x();
-          floc[3 * i + 1] -= w * p[i] * b.y();
-        }
-        if (!A) continue;
-        point_operator(L, w, newton, ns, Dq);
-        // T_q = D_q O_q column by column (O_q's columns have 2-3 nonzeros), and
-        // the rows of O_q per component.
-        const auto D = Dq.topLeftCorner(nr, nr);
-        for (int i = 0; i < n; ++i) {
-          const double gx = dp[2 * i], gy = dp[2 * i + 1], pr = axi ? p[i] / r : 0.0;
-          if (axi)
-            Tq.col(3 * i) = D.col(0) * gx + D.col(2) * pr + D.col(ns - 1) * gy;
-          else
-            Tq.col(3 * i) = D.col(0) * gx + D.col(ns - 1) * gy;
-          Tq.col(3 * i + 1) = D.col(1) * gy + D.col(ns - 1) * gx;
-          Tq.col(3 * i + 2) = D.col(ns) * p[i] + D.col(ns + 1) * gx + D.col(ns + 2) * gy;
-          double* o0 = &Oc[0](q * rows_of[0], i);
-          o0[0] = gx;
-          if (axi) {
-            o0[1] = pr;
-            o0[2] = gy;
-          } else {
-            o0[1] = gy;
-          }
-          double* o1 = &Oc[1](q * rows_of[1], i);
-          o1[0] = gy;
-          o1[1] = gx;
-          double* o2 = &Oc[2](q * rows_of[2], i);
-          o2[0] = p[i];
-          o2[1] = gx;
-          o2[2] = gy;
-        }
-        for (int c = 0; c < 3; ++c)
-          for (int k = 0; k < rows_of[c]; ++k) Tc[c].row(q * rows_of[c] + k) = Tq.row(row_index[c][k]);
-      }
-      rloc += floc;
-      if (A)
-        for (int c = 0; c < 3; ++c) Ac[c].noalias() = Oc[c].transpose() * Tc[c];  // rows 3i+c of A_loc
-      // Scatter the owned rows (residual) and columns (matrix).
-      for (int j = 0; j < n; ++j) {
-        const int b = u[static_cast<std::size_t>(j)];
-        if (b < lo || b >= hi) continue;
-        for (int c = 0; c < 3; ++c) R[3 * b + c] += rloc[3 * j + c];
-        if (fint)
-          for (int c = 0; c < 2; ++c) (*fint)[3 * b + c] += rloc[3 * j + c] - floc[3 * j + c];
-        if (!A) continue;
-        kpos.resize(static_cast<std::size_t>(n));
-        const int* it = pat.adjacency_begin(b);
-        const int* first = it;
-        for (int i = 0; i < n; ++i) {
-          while (*it < u[static_cast<std::size_t>(i)]) ++it;
-          kpos[static_cast<std::size_t>(i)] = static_cast<int>(it - first);
-        }
-        for (int cc = 0; cc < 3; ++cc) {
-          double* col = values + outer[3 * b + cc];
-          const double* a0 = Ac[0].col(3 * j + cc).data();
-          const double* a1 = Ac[1].col(3 * j + cc).data();
-          const double* a2 = Ac[2].col(3 * j + cc).data();
-          for (int i = 0; i < n; ++i) {
-            double* blk = col + 3 * kpos[static_cast<std::size_t>(i)];
-            blk[0] += a0[i];
-            blk[1] += a1[i];
-            blk[2] += a2[i];
-          }
-        }
+      integrate_cell(t, X, cw, u.front() >= lo ? state : nullptr);  // one thread writes each point
+      scatter_cell(u, cw, lo, hi, pat, A, R, fint);
+    }
+  }
+}
+
+template <ViscosityLaw Material>
+void StabilizedFlowAssembler<Material>::integrate_cell(int t, const Eigen::VectorXd& X, CellWork& cw,
+                                                       FlowPointState* state) const {
+  const FlowDiscretization& disc = *disc_;
+  const auto u = disc.nodes(t);
+  const int n = static_cast<int>(u.size()), nd = nf * n, ns = cw.ns, nq = disc.points_per_cell();
+  cw.rloc.setZero(nd);
+  cw.floc.setZero(nd);
+  if (cw.matrix) {
+    for (int c = 0; c < nf; ++c) {
+      cw.Oc[c].resize(nq * cw.rows_of[c], n);
+      cw.Tc[c].resize(nq * cw.rows_of[c], nd);
+    }
+    cw.Tq.resize(ns + 3, nd);
+  }
+  double y[7];  // plain arrays: tiny, and no AVX-512 false positives in GCC 12
+  for (int q = 0; q < nq; ++q) {
+    const int g = t * nq + q;
+    const double* p = disc.values(t, q);
+    const double* dp = disc.gradients(t, q);
+    const double w = disc.weight(g);
+    const double r = disc.points()(0, g);
+    // Current fields at the point: strain rate, pressure, grad p.
+    double z[7];
+    point_rows(u, p, dp, r, cw.axi, ns, X, z);
+    const Eigen::Vector2d b = body_ ? body_(disc.points().col(g)) : Eigen::Vector2d::Zero();
+    const Eigen::Vector2d bs = prm_.stabilize_body_force ? b : Eigen::Vector2d::Zero();
+    const PointLaw L = point_law(z, ns, disc.rho(g), bs, g);
+    if (state) {
+      state->d[g] = L.d;
+      state->mu[g] = L.mu;
+      state->tau[g] = L.tau;
+      state->p[g] = L.pq;
+      state->div[g] = L.div;
+    }
+    // Residual: strain rows w (2 mu Q eps - p m); phi row -w div v;
+    // grad rows -w tau (grad p - f)  (Eq. 13 with the sign of Eq. 21).
+    for (int k = 0; k < ns; ++k) y[k] = w * (2.0 * L.mu * L.Qeps[k] - L.pq * L.m[k]);
+    y[ns] = -w * L.div;
+    y[ns + 1] = -w * L.tau * L.sx;
+    y[ns + 2] = -w * L.tau * L.sy;
+    add_transposed(y, p, dp, n, r, cw.axi, ns, cw.rloc);
+    for (int i = 0; i < n; ++i) {  // the body force
+      cw.floc[nf * i] -= w * p[i] * b.x();
+      cw.floc[nf * i + 1] -= w * p[i] * b.y();
+    }
+    if (!cw.matrix) continue;
+    point_operator(L, w, cw.newton, ns, cw.Dq);
+    point_matrix_rows(q, n, p, dp, r, cw);
+  }
+  cw.rloc += cw.floc;
+  if (cw.matrix)
+    for (int c = 0; c < nf; ++c) cw.Ac[c].noalias() = cw.Oc[c].transpose() * cw.Tc[c];  // rows nf i + c of A_loc
+}
+
+template <ViscosityLaw Material>
+void StabilizedFlowAssembler<Material>::point_matrix_rows(int q, int n, const double* p, const double* dp,
+                                                          double r, CellWork& cw) {
+  // T_q = D_q O_q column by column (O_q's columns have 2-3 nonzeros), and the
+  // rows of O_q per component.
+  const int ns = cw.ns;
+  const auto D = cw.Dq.topLeftCorner(ns + 3, ns + 3);
+  for (int i = 0; i < n; ++i) {
+    const double gx = dp[2 * i], gy = dp[2 * i + 1], pr = cw.axi ? p[i] / r : 0.0;
+    if (cw.axi)
+      cw.Tq.col(nf * i) = D.col(0) * gx + D.col(2) * pr + D.col(ns - 1) * gy;
+    else
+      cw.Tq.col(nf * i) = D.col(0) * gx + D.col(ns - 1) * gy;
+    cw.Tq.col(nf * i + 1) = D.col(1) * gy + D.col(ns - 1) * gx;
+    cw.Tq.col(nf * i + 2) = D.col(ns) * p[i] + D.col(ns + 1) * gx + D.col(ns + 2) * gy;
+    double* o0 = &cw.Oc[0](q * cw.rows_of[0], i);
+    o0[0] = gx;
+    if (cw.axi) {
+      o0[1] = pr;
+      o0[2] = gy;
+    } else {
+      o0[1] = gy;
+    }
+    double* o1 = &cw.Oc[1](q * cw.rows_of[1], i);
+    o1[0] = gy;
+    o1[1] = gx;
+    double* o2 = &cw.Oc[2](q * cw.rows_of[2], i);
+    o2[0] = p[i];
+    o2[1] = gx;
+    o2[2] = gy;
+  }
+  for (int c = 0; c < nf; ++c)
+    for (int k = 0; k < cw.rows_of[c]; ++k) cw.Tc[c].row(q * cw.rows_of[c] + k) = cw.Tq.row(cw.row_index[c][k]);
+}
+
+template <ViscosityLaw Material>
+void StabilizedFlowAssembler<Material>::scatter_cell(std::span<const int> u, CellWork& cw, int lo, int hi,
+                                                     const SystemPattern& pat, Matrix* A, Eigen::VectorXd& R,
+                                                     Eigen::VectorXd* fint) {
+  // The owned rows (residual) and columns (matrix) of this thread's nodes.
+  const int n = static_cast<int>(u.size());
+  double* values = A ? A->valuePtr() : nullptr;
+  const int* outer = A ? A->outerIndexPtr() : nullptr;
+  for (int j = 0; j < n; ++j) {
+    const int b = u[static_cast<std::size_t>(j)];
+    if (b < lo || b >= hi) continue;
+    for (int c = 0; c < nf; ++c) R[nf * b + c] += cw.rloc[nf * j + c];
+    if (fint)
+      for (int c = 0; c < 2; ++c) (*fint)[nf * b + c] += cw.rloc[nf * j + c] - cw.floc[nf * j + c];
+    if (!A) continue;
+    cw.kpos.resize(static_cast<std::size_t>(n));
+    const int* it = pat.adjacency_begin(b);
+    const int* first = it;
+    for (int i = 0; i < n; ++i) {
+      while (*it < u[static_cast<std::size_t>(i)]) ++it;
+      cw.kpos[static_cast<std::size_t>(i)] = static_cast<int>(it - first);
+    }
+    for (int cc = 0; cc < nf; ++cc) {
+      double* col = values + outer[nf * b + cc];
+      const double* a0 = cw.Ac[0].col(nf * j + cc).data();
+      const double* a1 = cw.Ac[1].col(nf * j + cc).data();
+      const double* a2 = cw.Ac[2].col(nf * j + cc).data();
+      for (int i = 0; i < n; ++i) {
+        double* blk = col + nf * cw.kpos[static_cast<std::size_t>(i)];
+        blk[0] += a0[i];
+        blk[1] += a1[i];
+        blk[2] += a2[i];
       }
     }
   }
@@ -484,7 +512,7 @@ void StabilizedFlowAssembler<Material>::linearize(const Eigen::VectorXd& X) {
   const bool axi = disc.axisymmetric();
   const int ns = axi ? 4 : 3;
   const int nq = disc.points_per_cell();
-  require(X.size() >= 3 * N, "X needs 3 entries per node", "StabilizedFlowAssembler::linearize");
+  require(X.size() >= nf * N, "X needs 3 entries per node", "StabilizedFlowAssembler::linearize");
   tangent_.resize(static_cast<std::size_t>(disc.cells()) * nq);
 #pragma omp parallel for schedule(static) num_threads(std::max(1, std::min(max_threads(), N / 64 + 1)))
   for (int t = 0; t < disc.cells(); ++t) {
@@ -521,7 +549,7 @@ void StabilizedFlowAssembler<Material>::apply_tangent(const Eigen::VectorXd& v, 
   const int nq = disc.points_per_cell();
   require(linearized_ && tangent_.size() == static_cast<std::size_t>(disc.cells()) * nq,
           "linearize(X) first", "StabilizedFlowAssembler::apply_tangent");
-  require(v.size() >= 3 * N && Jv.size() >= 3 * N, "v and Jv need 3 entries per node",
+  require(v.size() >= nf * N && Jv.size() >= nf * N, "v and Jv need 3 entries per node",
           "StabilizedFlowAssembler::apply_tangent");
   const int threads = std::max(1, std::min(max_threads(), N / 64 + 1));
 #pragma omp parallel num_threads(threads)
@@ -535,7 +563,7 @@ void StabilizedFlowAssembler<Material>::apply_tangent(const Eigen::VectorXd& v, 
       const auto u = disc.nodes(t);
       if (u.back() < lo || u.front() >= hi) continue;
       const int n = static_cast<int>(u.size());
-      jloc.setZero(3 * n);
+      jloc.setZero(nf * n);
       for (int q = 0; q < nq; ++q) {
         const int g = t * nq + q;
         const double* p = disc.values(t, q);
@@ -559,7 +587,7 @@ void StabilizedFlowAssembler<Material>::apply_tangent(const Eigen::VectorXd& v, 
       for (int j = 0; j < n; ++j) {
         const int b = u[static_cast<std::size_t>(j)];
         if (b < lo || b >= hi) continue;
-        for (int c = 0; c < 3; ++c) Jv[3 * b + c] += jloc[3 * j + c];
+        for (int c = 0; c < nf; ++c) Jv[nf * b + c] += jloc[nf * j + c];
       }
     }
   }

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <concepts>
 
+#include <Eigen/Core>
+
 #include <maxentflow/core/error.hpp>
 
 namespace maxentflow {
@@ -15,11 +17,21 @@ struct Viscosity {
   double dmu_dd_over_d = 0.0;
 };
 
-/// A material policy: sigma' = 2 mu(d) D (Eq. 7). The Newton tangent is then
-/// 2 mu I + 2 D (x) dmu/dD with dmu/dD = mu'(d) (2/3) D / d.
+/// What a viscosity law reads at one integration point: the equivalent strain
+/// rate and where the point is (a part made of zones of different material).
+/// State a law may need later (temperature, effective strain) is added here,
+/// filled by the assembler, without changing the laws that ignore it.
+struct MaterialPoint {
+  double d = 0.0;                             ///< sqrt(2/3 D:D)
+  Eigen::Vector2d x = Eigen::Vector2d::Zero();  ///< position (r, z) or (x, y)
+};
+
+/// A material policy: sigma' = 2 mu D (Eq. 7) with mu from the point's state.
+/// The Newton tangent is then 2 mu I + 2 D (x) dmu/dD with
+/// dmu/dD = mu'(d) (2/3) D / d.
 template <class M>
-concept ViscosityLaw = requires(const M& m, double d) {
-  { m.viscosity(d) } -> std::convertible_to<Viscosity>;
+concept ViscosityLaw = requires(const M& m, const MaterialPoint& point) {
+  { m.viscosity(point) } -> std::convertible_to<Viscosity>;
 };
 
 /// Norton-Hoff power law, Eq. (9): mu = mu0 (sqrt(3) d)^(n-1), so the flow
@@ -47,6 +59,8 @@ struct NortonHoff {
             detail::cat("d_min must be positive for n != 1, got ", d_min), "NortonHoff");
   }
 
+  Viscosity viscosity(const MaterialPoint& point) const { return viscosity(point.d); }
+  /// The law at a bare strain rate (formulas, exact solutions).
   Viscosity viscosity(double d) const {
     const double d2 = d * d + d_min * d_min;
     if (n == 1.0) return {mu0, 0.0};
@@ -60,6 +74,7 @@ struct NortonHoff {
 /// A Newtonian fluid (mu constant): Stokes flow, the n = 1 Norton-Hoff law.
 struct Newtonian {
   double mu = 1.0;
+  Viscosity viscosity(const MaterialPoint&) const { return {mu, 0.0}; }
   Viscosity viscosity(double) const { return {mu, 0.0}; }
 };
 

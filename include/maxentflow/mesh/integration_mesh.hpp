@@ -57,7 +57,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <filesystem>
 #include <limits>
 #include <string>
 #include <type_traits>
@@ -66,8 +65,6 @@
 #include <Eigen/Core>
 
 #include <maxentflow/core/error.hpp>
-#include <maxentflow/core/traits.hpp>
-#include <maxentflow/io/vtk.hpp>
 #include <maxentflow/mesh/detail/delaunay_2.hpp>
 #include <maxentflow/mesh/detail/spacing.hpp>
 #include <maxentflow/mesh/quadrature.hpp>
@@ -110,19 +107,17 @@ struct BoundaryLoop {
 
 /// Delaunay triangulation of the nodes cut by the alpha-shape criterion, with
 /// its edges, boundary loops, nodal spacing h and quadrature points.
-/// 2-D is implemented; the interface (Traits, Cell, Points) is the 3-D one.
-template <class Traits_ = Traits<2>>
+/// 2-D is implemented; the interface (Dim, Cell, Points) is the 3-D one, as
+/// MaxEntBasis<Dim> is templated on the dimension.
+template <int Dim = 2>
 class IntegrationMesh {
  public:
-  using traits = Traits_;
-  static constexpr int dim = Traits_::dim;
+  static constexpr int dim = Dim;
   static_assert(dim == 2,
                 "maxentflow: IntegrationMesh is implemented in 2-D only (3-D: "
                 "Delaunay_triangulation_3 with the same alpha cut is future work)");
-  static_assert(std::is_same_v<typename Traits_::Scalar, double>, "maxentflow: Scalar = double");
-  static_assert(std::is_same_v<typename Traits_::Index, int>, "maxentflow: Index = int");
-  using Points = typename Traits_::Points;
-  using Point = typename Traits_::Point;
+  using Points = Eigen::Matrix<double, Dim, Eigen::Dynamic>;  ///< one column per point
+  using Point = Eigen::Matrix<double, Dim, 1>;
   using Cell = std::array<int, dim + 1>;
   using Edge = MeshEdge;
   using Quadrature = BasicQuadraturePoints<dim>;
@@ -244,10 +239,6 @@ class IntegrationMesh {
   }
   void boundary_quadrature(const SegmentRule& rule, Quadrature& q, bool axisymmetric = false) const;
 
-  /// Writes the kept mesh as .vtu: per node boundary flag, h, cut spacing,
-  /// convex-hull flag, orphan flag; per triangle its area.
-  void write_vtu(const std::filesystem::path& path) const;
-
  private:
   void build_mesh(const Points& nodes);
   void clear();
@@ -290,8 +281,8 @@ class IntegrationMesh {
 
 // ---------------------------------------------------------------------------
 
-template <class T>
-void IntegrationMesh<T>::check_params() const {
+template <int D>
+void IntegrationMesh<D>::check_params() const {
   const std::string where = "IntegrationMesh::params";
   if (!(std::isfinite(prm_.alpha) && prm_.alpha > 0.0))
     throw Error(detail::cat("alpha = ", prm_.alpha, " must be positive and finite"), where);
@@ -306,8 +297,8 @@ void IntegrationMesh<T>::check_params() const {
     throw Error(detail::cat("cut_iterations = ", prm_.cut_iterations, " must be >= 0"), where);
 }
 
-template <class T>
-void IntegrationMesh<T>::build(const Points& nodes) {
+template <int D>
+void IntegrationMesh<D>::build(const Points& nodes) {
   try {
     build_mesh(nodes);
   } catch (...) {
@@ -316,8 +307,8 @@ void IntegrationMesh<T>::build(const Points& nodes) {
   }
 }
 
-template <class T>
-void IntegrationMesh<T>::clear() {
+template <int D>
+void IntegrationMesh<D>::clear() {
   nodes_.resize(2, 0);
   dt_.tri.clear();
   dt_.nbr.clear();
@@ -341,8 +332,8 @@ void IntegrationMesh<T>::clear() {
   h_cut_.resize(0);
 }
 
-template <class T>
-void IntegrationMesh<T>::build_mesh(const Points& nodes) {
+template <int D>
+void IntegrationMesh<D>::build_mesh(const Points& nodes) {
   const std::string where = "IntegrationMesh::build";
   check_params();
   nodes_ = nodes;
@@ -374,8 +365,8 @@ void IntegrationMesh<T>::build_mesh(const Points& nodes) {
     }
 }
 
-template <class T>
-void IntegrationMesh<T>::compute_cut_spacing() {
+template <int D>
+void IntegrationMesh<D>::compute_cut_spacing() {
   const auto n = static_cast<std::size_t>(nodes_.cols());
   detail::edges_from_neighbours(dt_.tri, dt_.nbr, dt_edges_);
   // Incident edge lengths per node, compressed rows.
@@ -436,8 +427,8 @@ void IntegrationMesh<T>::compute_cut_spacing() {
 
 // h_a = sqrt 2 * median circumradius of the kept triangles at a (a regular
 // grid: exactly h), into h_; nodes in no kept triangle keep h_cut_.
-template <class T>
-void IntegrationMesh<T>::kept_radius_spacing() {
+template <int D>
+void IntegrationMesh<D>::kept_radius_spacing() {
   const auto n = static_cast<std::size_t>(nodes_.cols());
   offset_.assign(n + 1, 0);
   for (const auto& t : triangles_)
@@ -467,8 +458,8 @@ void IntegrationMesh<T>::kept_radius_spacing() {
   }
 }
 
-template <class T>
-void IntegrationMesh<T>::alpha_cut(const std::string& where) {
+template <int D>
+void IntegrationMesh<D>::alpha_cut(const std::string& where) {
   const std::size_t nt = dt_.tri.size();
   dt2kept_.assign(nt, -1);
   radius_.assign(nt, std::numeric_limits<double>::infinity());
@@ -509,8 +500,8 @@ void IntegrationMesh<T>::alpha_cut(const std::string& where) {
     }
 }
 
-template <class T>
-void IntegrationMesh<T>::build_edges() {
+template <int D>
+void IntegrationMesh<D>::build_edges() {
   edges_.clear();
   edge_local_.clear();
   edges_.reserve(2 * triangles_.size() + 16);
@@ -537,8 +528,8 @@ void IntegrationMesh<T>::build_edges() {
 // the unique one, or at a pinch node (several), the one reached by turning
 // around v through kept triangles from e's triangle, so that each loop closes
 // around one fan of triangles.
-template <class T>
-int IntegrationMesh<T>::next_boundary_edge(int e, const std::string& where) const {
+template <int D>
+int IntegrationMesh<D>::next_boundary_edge(int e, const std::string& where) const {
   const int v = edges_[static_cast<std::size_t>(e)].b;
   if (out_count_[static_cast<std::size_t>(v)] == 1) return out_edge_[static_cast<std::size_t>(v)];
   int t = edges_[static_cast<std::size_t>(e)].left;
@@ -554,8 +545,8 @@ int IntegrationMesh<T>::next_boundary_edge(int e, const std::string& where) cons
               detail::cat(where, ", node ", v));
 }
 
-template <class T>
-void IntegrationMesh<T>::build_boundary(const std::string& where) {
+template <int D>
+void IntegrationMesh<D>::build_boundary(const std::string& where) {
   const auto n = static_cast<std::size_t>(nodes_.cols());
   out_count_.assign(n, 0);
   in_count_.assign(n, 0);
@@ -620,8 +611,8 @@ void IntegrationMesh<T>::build_boundary(const std::string& where) {
 }
 
 // Appends path_[first..] as a loop with its segments.
-template <class T>
-void IntegrationMesh<T>::add_loop(std::size_t first, const std::string& where) {
+template <int D>
+void IntegrationMesh<D>::add_loop(std::size_t first, const std::string& where) {
   BoundaryLoop loop;
   const int index = static_cast<int>(loops_.size());
   const std::size_t m = path_.size() - first;
@@ -659,8 +650,8 @@ void IntegrationMesh<T>::add_loop(std::size_t first, const std::string& where) {
   loops_.push_back(std::move(loop));
 }
 
-template <class T>
-void IntegrationMesh<T>::cell_quadrature(const TriangleRule& rule, Quadrature& q,
+template <int D>
+void IntegrationMesh<D>::cell_quadrature(const TriangleRule& rule, Quadrature& q,
                                          bool axisymmetric) const {
   const auto np = static_cast<Eigen::Index>(rule.weight.size());
   const auto total = np * number_of_triangles();
@@ -689,9 +680,9 @@ void IntegrationMesh<T>::cell_quadrature(const TriangleRule& rule, Quadrature& q
   }
 }
 
-template <class T>
+template <int D>
 template <class Rule, class Segments>
-void IntegrationMesh<T>::segment_points(const Rule& rule, const Segments& segs, Quadrature& q,
+void IntegrationMesh<D>::segment_points(const Rule& rule, const Segments& segs, Quadrature& q,
                                         bool axisymmetric, const char* where) const {
   const auto np = static_cast<Eigen::Index>(rule.weight.size());
   const auto total = np * static_cast<Eigen::Index>(segs.size());
@@ -727,38 +718,16 @@ void IntegrationMesh<T>::segment_points(const Rule& rule, const Segments& segs, 
   }
 }
 
-template <class T>
-void IntegrationMesh<T>::edge_quadrature(const SegmentRule& rule, Quadrature& q,
+template <int D>
+void IntegrationMesh<D>::edge_quadrature(const SegmentRule& rule, Quadrature& q,
                                          bool axisymmetric) const {
   segment_points(rule, edges_, q, axisymmetric, "edge_quadrature");
 }
 
-template <class T>
-void IntegrationMesh<T>::boundary_quadrature(const SegmentRule& rule, Quadrature& q,
+template <int D>
+void IntegrationMesh<D>::boundary_quadrature(const SegmentRule& rule, Quadrature& q,
                                              bool axisymmetric) const {
   segment_points(rule, segments_, q, axisymmetric, "boundary_quadrature");
-}
-
-template <class T>
-void IntegrationMesh<T>::write_vtu(const std::filesystem::path& path) const {
-  const auto n = static_cast<std::size_t>(nodes_.cols());
-  std::vector<int> boundary(n), hull(n), orphan(n, 0);
-  for (std::size_t a = 0; a < n; ++a) {
-    boundary[a] = boundary_flag_[a];
-    hull[a] = hull_flag_[a];
-  }
-  for (int a : orphans_) orphan[static_cast<std::size_t>(a)] = 1;
-  VtuWriter w;
-  w.points(nodes_)
-      .triangles(triangles_)
-      .point_scalar("boundary", boundary)
-      .point_scalar("h", h_)
-      .point_scalar("h_cut", h_cut_)
-      .point_scalar("on_convex_hull", hull)
-      .point_scalar("orphan", orphan)
-      .cell_scalar("area", Eigen::Map<const Eigen::VectorXd>(
-                               area_.data(), static_cast<Eigen::Index>(area_.size())));
-  w.write(path);
 }
 
 }  // namespace maxentflow

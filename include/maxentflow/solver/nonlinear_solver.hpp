@@ -176,17 +176,9 @@ class NonlinearSolver {
   /// fine: the first Picard iteration is then a Newtonian solve).
   template <NonlinearSystem System>
   SolveReport solve(System& sys, Eigen::VectorXd& X) {
-    using clock = std::chrono::steady_clock;
-    auto seconds = [](clock::time_point a) {
-      return std::chrono::duration<double>(clock::now() - a).count();
-    };
     SolveReport rep;
     const int n = sys.size();
-    if (X.size() != n) {
-      Eigen::VectorXd Y = Eigen::VectorXd::Zero(n);
-      Y.head(std::min<Eigen::Index>(n, X.size())) = X.head(std::min<Eigen::Index>(n, X.size()));
-      X = Y;
-    }
+    fit_start(X, n);
     Linearization phase = prm_.newton && prm_.newton_from_warm_start && sys.velocity_norm(X) > 0
                               ? Linearization::newton
                               : Linearization::picard;
@@ -194,12 +186,13 @@ class NonlinearSolver {
     if constexpr (SteerableKrylovSolver<Linear>) fallbacks_before = linear_.direct_fallbacks();
     bool full_newton_step = false;
     double increment = std::numeric_limits<double>::infinity();
-    Eigen::VectorXd R, Rtry, Xtry, dx;
+    Eigen::VectorXd R, dx;
     for (int it = 0; it < prm_.max_iterations; ++it) {
+      // 1. Residual (and the matrix, unless the kept LU serves this iteration).
       const Linearization kind = phase;
       const bool kept = use_kept_lu(sys, n) && kind == Linearization::newton;
       auto t0 = clock::now();
-      bool assembled = !(kept && kept_lu_current(n));
+      const bool assembled = !(kept && kept_lu_current(n));
       if (assembled)
         sys.assemble(X, kind, A_, R);
       else
@@ -212,103 +205,30 @@ class NonlinearSolver {
         rep.converged = true;
         break;
       }
+      // 2. The direction: kept-LU Newton, preconditioned Krylov, or direct.
       int linear_its = 0;
       if (kept) {
         if constexpr (KeptLuLinearSolver<Linear> && LayoutKeyedSystem<System>)
           dx = kept_lu_newton(sys, X, R, res, assembled, rep, linear_its);
       } else if constexpr (PreconditionedLinearSolver<Linear>) {
-        static_assert(PreconditionedSystem<System>,
-                      "a Krylov policy needs a system with assemble_preconditioner()");
-        auto refresh = [&] {
-          t0 = clock::now();
-          sys.assemble_preconditioner(X, P_);
-          rep.assembly_seconds += seconds(t0);
-          t0 = clock::now();
-          if (sys.preconditioner_generation() != analyzed_generation_ || analyzed_size_ != n) {
-            linear_.analyze_preconditioner(P_);
-            analyzed_generation_ = sys.preconditioner_generation();
-            analyzed_size_ = n;
-          }
-          linear_.factorize_preconditioner(P_);
-          rep.factorization_seconds += seconds(t0);
-          fresh_rate_ = -1.0;
-          ++rep.preconditioner_updates;
-        };
-        // The preconditioner only steers GMRES: keep its LU while GMRES needs
-        // no more iterations per decade of residual than just after it was made.
-        const bool kept = sys.preconditioner_generation() == analyzed_generation_ &&
-                           analyzed_size_ == n && prm_.preconditioner_refresh > 0 &&
-                           rate_ <= prm_.preconditioner_refresh * fresh_rate_;
-        if (!kept) refresh();
-        if constexpr (SteerableKrylovSolver<Linear>) {
-          const double eta = std::max(res, 0.5 * prm_.residual_tol / std::max(res, 1e-300));
-          const double cap = kind == Linearization::picard ? prm_.eta_picard : prm_.eta_max;
-          linear_.set_tolerance(std::clamp(eta, prm_.eta_min, cap));
-        }
-        t0 = clock::now();
-        // A kept preconditioner that GMRES cannot converge with is rebuilt
-        // before the (costly) direct fallback is tried.
-        if constexpr (SteerableKrylovSolver<Linear>) {
-          dx = linear_.solve(A_, -R, !kept);
-          if (kept && !linear_.converged()) {
-            rep.linear_iterations += linear_.last_iterations();
-            rep.solve_seconds += seconds(t0);
-            refresh();
-            t0 = clock::now();
-            dx = linear_.solve(A_, -R);
-          }
-        } else {
-          dx = linear_.solve(A_, -R);
-        }
-        rep.solve_seconds += seconds(t0);
-        linear_its = linear_.last_iterations();
-        rep.linear_iterations += linear_its;
-        rep.max_linear_iterations = std::max(rep.max_linear_iterations, linear_its);
-        if constexpr (SteerableKrylovSolver<Linear>) {
-          const double decades = -std::log10(std::clamp(linear_.last_residual(), 1e-16, 0.5));
-          rate_ = linear_its / decades;
-          if (fresh_rate_ < 0) fresh_rate_ = std::max(rate_, 1.0);
-        }
+        dx = krylov_direction(sys, X, R, res, kind, rep, linear_its);
       } else {
-        t0 = clock::now();
-        if (sys.structure_generation() != analyzed_generation_ || analyzed_size_ != n) {
-          linear_.analyze(A_);
-          analyzed_generation_ = sys.structure_generation();
-          analyzed_size_ = n;
-        }
-        linear_.factorize(A_);
-        rep.factorization_seconds += seconds(t0);
-        t0 = clock::now();
-        dx = linear_.solve(-R);
-        rep.solve_seconds += seconds(t0);
+        dx = direct_direction(sys, R, rep);
       }
       MAXENTFLOW_REQUIRE(dx.allFinite(),
                          detail::cat("the linear solve gave NaN/Inf (singular system?) at iteration ",
                                      it, "\n", rep.log()),
                          "NonlinearSolver::solve");
-      double step = 1.0;
-      if (kind == Linearization::newton) {
-        const double phi0 = R.norm();
-        bool accepted = false;
-        for (int ls = 0; ls <= prm_.line_search; ++ls, step *= 0.5) {
-          Xtry = X + step * dx;
-          t0 = clock::now();
-          sys.residual(Xtry, Rtry);
-          rep.assembly_seconds += seconds(t0);
-          if (Rtry.norm() <= (1.0 - 1e-4 * step) * phi0) {
-            accepted = true;
-            break;
-          }
-        }
-        if (!accepted) {  // Newton is outside its basin: back to direct iteration
-          rep.history.push_back({it, kind, res, 0.0, 0.0, linear_its});
-          ++rep.newton;
-          if (prm_.log) *prm_.log << "  newton line search failed; back to picard\n";
-          phase = Linearization::picard;
-          picard_since_switch_ = 0;
-          full_newton_step = false;
-          continue;
-        }
+      // 3. The step: full for Picard, backtracking on |R| for Newton.
+      const double step = kind == Linearization::newton ? line_search(sys, X, R, dx, rep) : 1.0;
+      if (step == 0.0) {  // Newton is outside its basin: back to direct iteration
+        rep.history.push_back({it, kind, res, 0.0, 0.0, linear_its});
+        ++rep.newton;
+        if (prm_.log) *prm_.log << "  newton line search failed; back to picard\n";
+        phase = Linearization::picard;
+        picard_since_switch_ = 0;
+        full_newton_step = false;
+        continue;
       }
       X += step * dx;
       full_newton_step = kind == Linearization::newton && step == 1.0;
@@ -317,14 +237,8 @@ class NonlinearSolver {
       rep.increment = increment;
       rep.history.push_back({it, kind, res, increment, step, linear_its});
       (kind == Linearization::picard ? rep.picard : rep.newton) += 1;
-      if (prm_.log) {
-        char line[128];
-        std::snprintf(line, sizeof line,
-                      "  %3d %-6s residual %.3e  increment %.3e  step %.3g  linear its %d\n", it,
-                      kind == Linearization::picard ? "picard" : "newton", res, increment, step,
-                      linear_its);
-        *prm_.log << line;
-      }
+      log_iteration(it, kind, res, increment, step, linear_its);
+      // 4. Picard hands over to Newton once the increment is small.
       if (phase == Linearization::picard) ++picard_since_switch_;
       if (phase == Linearization::picard && prm_.newton &&
           (increment < prm_.switch_increment || picard_since_switch_ >= prm_.max_picard))
@@ -341,6 +255,118 @@ class NonlinearSolver {
   }
 
  private:
+  using clock = std::chrono::steady_clock;
+  // A start of another size: cut, or padded with zeros.
+  static void fit_start(Eigen::VectorXd& X, int n) {
+    if (X.size() == n) return;
+    Eigen::VectorXd Y = Eigen::VectorXd::Zero(n);
+    Y.head(std::min<Eigen::Index>(n, X.size())) = X.head(std::min<Eigen::Index>(n, X.size()));
+    X = Y;
+  }
+  static double seconds(clock::time_point a) { return std::chrono::duration<double>(clock::now() - a).count(); }
+
+  // A direction from the preconditioned Krylov policy; the preconditioner's LU
+  // is kept while GMRES needs no more iterations per decade of residual than
+  // just after it was made.
+  template <class System>
+  Eigen::VectorXd krylov_direction(System& sys, const Eigen::VectorXd& X, const Eigen::VectorXd& R,
+                                   double res, Linearization kind, SolveReport& rep, int& linear_its) {
+    static_assert(PreconditionedSystem<System>, "a Krylov policy needs a system with assemble_preconditioner()");
+    const int n = sys.size();
+    auto t0 = clock::now();
+    auto refresh = [&] {
+      t0 = clock::now();
+      sys.assemble_preconditioner(X, P_);
+      rep.assembly_seconds += seconds(t0);
+      t0 = clock::now();
+      if (sys.preconditioner_generation() != analyzed_generation_ || analyzed_size_ != n) {
+        linear_.analyze_preconditioner(P_);
+        analyzed_generation_ = sys.preconditioner_generation();
+        analyzed_size_ = n;
+      }
+      linear_.factorize_preconditioner(P_);
+      rep.factorization_seconds += seconds(t0);
+      fresh_rate_ = -1.0;
+      ++rep.preconditioner_updates;
+    };
+    const bool kept = sys.preconditioner_generation() == analyzed_generation_ && analyzed_size_ == n &&
+                      prm_.preconditioner_refresh > 0 && rate_ <= prm_.preconditioner_refresh * fresh_rate_;
+    if (!kept) refresh();
+    Eigen::VectorXd dx;
+    if constexpr (SteerableKrylovSolver<Linear>) {
+      const double eta = std::max(res, 0.5 * prm_.residual_tol / std::max(res, 1e-300));
+      const double cap = kind == Linearization::picard ? prm_.eta_picard : prm_.eta_max;
+      linear_.set_tolerance(std::clamp(eta, prm_.eta_min, cap));
+      // A kept preconditioner that GMRES cannot converge with is rebuilt
+      // before the (costly) direct fallback is tried.
+      t0 = clock::now();
+      dx = linear_.solve(A_, -R, !kept);
+      if (kept && !linear_.converged()) {
+        rep.linear_iterations += linear_.last_iterations();
+        rep.solve_seconds += seconds(t0);
+        refresh();
+        t0 = clock::now();
+        dx = linear_.solve(A_, -R);
+      }
+    } else {
+      t0 = clock::now();
+      dx = linear_.solve(A_, -R);
+    }
+    rep.solve_seconds += seconds(t0);
+    linear_its = linear_.last_iterations();
+    rep.linear_iterations += linear_its;
+    rep.max_linear_iterations = std::max(rep.max_linear_iterations, linear_its);
+    if constexpr (SteerableKrylovSolver<Linear>) {
+      const double decades = -std::log10(std::clamp(linear_.last_residual(), 1e-16, 0.5));
+      rate_ = linear_its / decades;
+      if (fresh_rate_ < 0) fresh_rate_ = std::max(rate_, 1.0);
+    }
+    return dx;
+  }
+
+  // A direction from a direct policy (analysed once per structure).
+  template <class System>
+  Eigen::VectorXd direct_direction(System& sys, const Eigen::VectorXd& R, SolveReport& rep) {
+    const int n = sys.size();
+    auto t0 = clock::now();
+    if (sys.structure_generation() != analyzed_generation_ || analyzed_size_ != n) {
+      linear_.analyze(A_);
+      analyzed_generation_ = sys.structure_generation();
+      analyzed_size_ = n;
+    }
+    linear_.factorize(A_);
+    rep.factorization_seconds += seconds(t0);
+    t0 = clock::now();
+    Eigen::VectorXd dx = linear_.solve(-R);
+    rep.solve_seconds += seconds(t0);
+    return dx;
+  }
+
+  // Backtracking (halving) on |R| with sufficient decrease; 0 when no step of
+  // the line search decreases it.
+  template <class System>
+  double line_search(System& sys, const Eigen::VectorXd& X, const Eigen::VectorXd& R,
+                     const Eigen::VectorXd& dx, SolveReport& rep) {
+    const double phi0 = R.norm();
+    double step = 1.0;
+    for (int ls = 0; ls <= prm_.line_search; ++ls, step *= 0.5) {
+      Xtry_ = X + step * dx;
+      const auto t0 = clock::now();
+      sys.residual(Xtry_, Rtry_);
+      rep.assembly_seconds += seconds(t0);
+      if (Rtry_.norm() <= (1.0 - 1e-4 * step) * phi0) return step;
+    }
+    return 0.0;
+  }
+
+  void log_iteration(int it, Linearization kind, double res, double increment, double step, int linear_its) const {
+    if (!prm_.log) return;
+    char line[128];
+    std::snprintf(line, sizeof line, "  %3d %-6s residual %.3e  increment %.3e  step %.3g  linear its %d\n", it,
+                  kind == Linearization::picard ? "picard" : "newton", res, increment, step, linear_its);
+    *prm_.log << line;
+  }
+
   // Newton with the kept LU applies (KeptLuLinearSolver, LayoutKeyedSystem, size).
   template <class System>
   bool use_kept_lu(System& sys, int n) {
@@ -367,10 +393,6 @@ class NonlinearSolver {
   template <class System>
   Eigen::VectorXd kept_lu_newton(System& sys, const Eigen::VectorXd& X, const Eigen::VectorXd& R,
                                  double res, bool assembled, SolveReport& rep, int& linear_its) {
-    using clock = std::chrono::steady_clock;
-    auto seconds = [](clock::time_point a) {
-      return std::chrono::duration<double>(clock::now() - a).count();
-    };
     const int n = sys.size();
     auto refactor = [&](const char* why) {
       if (prm_.log) *prm_.log << "  kept LU made: " << why << "\n";
@@ -417,7 +439,7 @@ class NonlinearSolver {
   params prm_;
   Linear linear_;
   Matrix A_, P_;
-  Eigen::VectorXd Jv_;
+  Eigen::VectorXd Jv_, Xtry_, Rtry_;
   long analyzed_generation_ = -1;
   int analyzed_size_ = -1;
   int picard_since_switch_ = 0;

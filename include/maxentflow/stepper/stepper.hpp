@@ -65,7 +65,7 @@ struct StepperParams {
   /// extrusion the product ends 9 % narrower than the die opening (4 % at
   /// 1e-6) and loses 3.9 % of its area (2.5 %): the default stays 1e-6.
   double tol0 = 1e-6;
-  IntegrationMesh<Traits<2>>::params mesh;       ///< alpha-shape (alpha = 1.3 h)
+  IntegrationMesh<2>::params mesh;       ///< alpha-shape (alpha = 1.3 h)
   FlowDiscretizationParams discretization;
   StabilizationParams stabilization;             ///< Cs
   NonlinearSolverParams solver;
@@ -142,7 +142,7 @@ struct VelocityCondition {
 template <ViscosityLaw Material, LinearSolverPolicy Linear = GmresSolver<>, StepControl Control = HalvingRetry>
 class Stepper {
  public:
-  using Mesh = IntegrationMesh<Traits<2>>;
+  using Mesh = IntegrationMesh<2>;
   using Basis = MaxEntBasis<2>;
 
   Stepper(Eigen::Matrix2Xd nodes, Material material, StepperParams prm)
