@@ -212,6 +212,55 @@ TEST_CASE("a solve that cannot converge in the allowed iterations throws with it
   }
 }
 
+TEST_CASE("a velocity-dependent boundary traction: its Newton tangent, matrix and matrix-free",
+          "[flow][solver][friction]") {
+  // Regularized Tresca-like friction on the top face (normal +y, tool at rest):
+  // t = -tau0 (2/pi) atan(v_x / v0) e_x, dt/dv_x = -tau0 (2/pi) / v0 / (1 + (v_x/v0)^2).
+  const double tau0 = 30.0, v0 = 0.01, H = 3;
+  auto P = compression(0.2, true);
+  const auto& segs = P.mesh.boundary_segments();
+  int on_top = 0;
+  for (std::size_t k = 0; k < segs.size(); ++k)
+    if (std::abs(P.mesh.nodes()(1, segs[k].a) - H) < 1e-9 && std::abs(P.mesh.nodes()(1, segs[k].b) - H) < 1e-9) {
+      P.system->add_velocity_traction(7, static_cast<int>(k), [=](const Eigen::Vector2d&, const Eigen::Vector2d& v) {
+        VelocityTraction vt;
+        const double s = v.x() / v0;
+        vt.t.x() = -tau0 * M_2_PI * std::atan(s);
+        vt.dt_dv(0, 0) = -tau0 * M_2_PI / v0 / (1 + s * s);
+        return vt;
+      });
+      ++on_top;
+    }
+  REQUIRE(on_top >= 10);
+  NonlinearSolver<> solver;
+  Eigen::VectorXd X;
+  const SolveReport rep = solver.solve(*P.system, X);
+  CHECK(rep.converged);
+  // The force on the "tool" opposes the traction: +x where the face slides +x.
+  const Eigen::Vector2d F = P.system->velocity_traction_force(7, X);
+  CHECK(F.x() > 0);
+  CHECK(F.y() == 0.0);
+  CHECK(P.system->velocity_traction_force(8, X).norm() == 0.0);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> g;
+  Eigen::VectorXd dX(X.size());
+  for (Eigen::Index k = 0; k < X.size(); ++k) dX[k] = g(rng) * (std::abs(X[k]) + 1e-3);
+  SystemPattern::Matrix A;
+  Eigen::VectorXd R, Rp, Rm, Jv;
+  P.system->assemble(X, Linearization::newton, A, R);
+  const double eps = 1e-6;
+  P.system->residual(X + eps * dX, Rp);
+  P.system->residual(X - eps * dX, Rm);
+  const Eigen::VectorXd fd = (Rp - Rm) / (2 * eps), an = A * dX;
+  CHECK((fd - an).norm() <= 1e-6 * an.norm());
+  P.system->apply_tangent(X, dX, Jv);
+  CHECK((Jv - an).norm() <= 1e-12 * an.norm());
+  // Without the traction's dt/dv the tangent is visibly off.
+  P.system->clear_velocity_tractions(7);
+  P.system->assemble(X, Linearization::newton, A, R);
+  CHECK((fd - A * dX).norm() > 1e-4 * an.norm());
+}
+
 TEST_CASE("Norton-Hoff viscosity and its derivative", "[flow][material]") {
   const NortonHoff m(150.0, 0.2, 1e-9);
   for (double d : {1e-3, 0.05, 2.0}) {

@@ -435,8 +435,22 @@ struct Belt {
 };
 static_assert(ContactLaw<Belt>);
 
+// A traction law defined outside the library: the normal contact of the
+// frictionless law plus a constant shear stress tau along the tool's tangent.
+struct ConstantShear {
+  double tau = 0.0;
+  std::string name() const { return "constant shear"; }
+  void conditions(const ContactPoint& c, const RigidTool& tool, double dt,
+                  std::vector<ContactCondition>& out) const {
+    out.push_back(normal_contact(c, tool, dt));
+  }
+  VelocityTraction traction(const ContactTractionPoint& q) const { return {tau * q.tangent(), Eigen::Matrix2d::Zero()}; }
+};
+static_assert(TractionContactLaw<ConstantShear> && !TractionContactLaw<Belt>);
+
 struct LawRun {
   StepRecord rec;
+  double contact_length = 0.0;  // of the top plate's contact segments (both ends in contact)
   double max_tangential = 0.0, mean_tangential = 0.0;  // v . t on the top plate's contact nodes off the axis
   int contact_nodes = 0;
   std::string law;
@@ -468,6 +482,9 @@ LawRun press_block(AnyContactLaw law) {
       ++p.contact_nodes;
     }
   p.mean_tangential /= std::max(p.contact_nodes, 1);
+  for (const auto& seg : s.mesh().boundary_segments())
+    if (s.contact_flags()[static_cast<std::size_t>(seg.a)] == 2 && s.contact_flags()[static_cast<std::size_t>(seg.b)] == 2)
+      p.contact_length += seg.length;
   return p;
 }
 
@@ -495,6 +512,23 @@ TEST_CASE("contact laws: sticking holds the contact face, a law from outside the
   CHECK(stick.rec.tool_force[1].x() > 0.02 * F_stick);
   // The belt drags the face along at w.
   CHECK(belt.mean_tangential == Approx(0.02).epsilon(0.05));
+}
+
+TEST_CASE("contact laws: a traction law from outside the library acts on the contact segments",
+          "[stepper][contact][friction]") {
+  const LawRun slip = press_block(Frictionless{});
+  // The top plate's normal is -y (into the workpiece), its tangent +x; tau < 0
+  // drags the face toward the axis, as friction against the spreading does.
+  const double tau = -20.0;  // about a third of the shear flow stress k here
+  const LawRun shear = press_block(ConstantShear{tau});
+  CHECK(shear.law == "constant shear");
+  REQUIRE(shear.contact_length > 7.0);
+  // The tool feels -int t: exactly -tau L along the tangent, since the basis
+  // sums to one at each point.
+  CHECK(shear.rec.tool_force[1].x() == Approx(-tau * shear.contact_length).epsilon(1e-9));
+  // The face spreads less, and the press needs more force.
+  CHECK(shear.mean_tangential < 0.8 * slip.mean_tangential);
+  CHECK(shear.rec.tool_force[1].y() > 1.05 * slip.rec.tool_force[1].y());
 }
 
 TEST_CASE("step control is a policy: a controller that never retries fails at the first attempt",

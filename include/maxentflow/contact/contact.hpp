@@ -119,6 +119,30 @@ class ToolContact {
     }
   }
 
+  /// A TractionContactLaw's traction on the segments whose two ends are
+  /// active, added to sys (a FlowSystem) under `part` (replacing the last).
+  template <class System>
+  void add_tractions(System& sys, int part, const Mesh& mesh, const RigidTool& tool, const AnyContactLaw& law) const {
+    sys.clear_velocity_tractions(part);
+    if (!law.has_traction()) return;
+    std::vector<char> active(static_cast<std::size_t>(mesh.number_of_nodes()), 0);
+    for (const auto& c : points_)
+      if (c.active) active[static_cast<std::size_t>(c.node)] = 1;
+    const auto& segs = mesh.boundary_segments();
+    for (std::size_t s = 0; s < segs.size(); ++s) {
+      if (!active[static_cast<std::size_t>(segs[s].a)] || !active[static_cast<std::size_t>(segs[s].b)]) continue;
+      // The tool outlives the system's solve (both belong to one step).
+      sys.add_velocity_traction(part, static_cast<int>(s), [&tool, law](const Eigen::Vector2d& x, const Eigen::Vector2d& v) {
+        ContactTractionPoint q;
+        q.x = x;
+        q.normal = tool.closest(x).normal;
+        q.v = v;
+        q.v_tool = tool.velocity();
+        return law.traction(q);
+      });
+    }
+  }
+
   /// Active-set update after a solve: releases nodes whose multiplier is
   /// tensile, activates free nodes that would penetrate with the velocity v
   /// (2 x N nodal values). Returns the number of changes.

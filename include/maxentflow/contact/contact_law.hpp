@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 
 #include <maxentflow/contact/rigid_tool.hpp>
+#include <maxentflow/flow/velocity_traction.hpp>
 
 namespace maxentflow {
 
@@ -44,6 +45,27 @@ concept ContactLaw = requires(const L& law, const ContactPoint& c, const RigidTo
                               std::vector<ContactCondition>& out) {
   { law.name() } -> std::convertible_to<std::string>;
   law.conditions(c, tool, dt, out);
+};
+
+/// What a traction law reads at a Gauss point of a contact segment (a segment
+/// whose two ends are active on the tool).
+struct ContactTractionPoint {
+  Eigen::Vector2d x = Eigen::Vector2d::Zero();       ///< the point
+  Eigen::Vector2d normal = Eigen::Vector2d::Zero();  ///< the tool's outward normal there
+  Eigen::Vector2d v = Eigen::Vector2d::Zero();       ///< the workpiece's velocity
+  Eigen::Vector2d v_tool = Eigen::Vector2d::Zero();  ///< the tool's velocity
+  /// The tool's tangent: the normal turned by +90 degrees.
+  Eigen::Vector2d tangent() const { return {-normal.y(), normal.x()}; }
+  /// The slip velocity: the tangential part of v - v_tool.
+  Eigen::Vector2d slip() const { return (v - v_tool) - (v - v_tool).dot(normal) * normal; }
+};
+
+/// A law that also acts by a traction on its contact segments (friction
+/// stress, not a multiplier): traction(point) gives t on the workpiece and
+/// dt/dv, integrated over the contact segments by FlowSystem.
+template <class L>
+concept TractionContactLaw = ContactLaw<L> && requires(const L& law, const ContactTractionPoint& q) {
+  { law.traction(q) } -> std::convertible_to<VelocityTraction>;
 };
 
 /// The normal condition of Eqs. (16)-(17) over a step: the gap at the step end
@@ -93,6 +115,9 @@ class AnyContactLaw {
                   std::vector<ContactCondition>& out) const {
     self_->conditions(c, tool, dt, out);
   }
+  /// Whether the held law is a TractionContactLaw; traction() is zero if not.
+  bool has_traction() const { return self_->has_traction(); }
+  VelocityTraction traction(const ContactTractionPoint& q) const { return self_->traction(q); }
 
  private:
   struct Interface {
@@ -100,6 +125,8 @@ class AnyContactLaw {
     virtual std::string name() const = 0;
     virtual void conditions(const ContactPoint&, const RigidTool&, double,
                             std::vector<ContactCondition>&) const = 0;
+    virtual bool has_traction() const = 0;
+    virtual VelocityTraction traction(const ContactTractionPoint&) const = 0;
   };
   template <class L>
   struct Model final : Interface {
@@ -109,11 +136,18 @@ class AnyContactLaw {
                     std::vector<ContactCondition>& out) const override {
       law.conditions(c, tool, dt, out);
     }
+    bool has_traction() const override { return TractionContactLaw<L>; }
+    VelocityTraction traction(const ContactTractionPoint& q) const override {
+      if constexpr (TractionContactLaw<L>)
+        return law.traction(q);
+      else
+        return {};
+    }
     L law;
   };
   std::shared_ptr<const Interface> self_;  // immutable: copies share it
 };
 
-static_assert(ContactLaw<AnyContactLaw>);
+static_assert(TractionContactLaw<AnyContactLaw>);
 
 }  // namespace maxentflow

@@ -103,10 +103,22 @@ class ContactSet {
     return which;
   }
 
-  /// The force the workpiece exerts on each tool (from the multipliers).
-  std::vector<Eigen::Vector2d> reactions(const ConstraintSet& cs, const Eigen::VectorXd& X, int n_nodes) const {
+  /// The laws' tractions (TractionContactLaw) on each tool's contact
+  /// segments, into sys (a FlowSystem); after add_rows().
+  template <class System>
+  void add_tractions(System& sys, const Mesh& mesh) const {
+    for (std::size_t k = 0; k < tools_.size(); ++k)
+      entries_[k].contact.add_tractions(sys, entries_[k].part, mesh, tools_[k], entries_[k].law);
+  }
+
+  /// The force the workpiece exerts on each tool at X (a solution of sys, a
+  /// FlowSystem): its multipliers' and its laws' tractions.
+  template <class System>
+  std::vector<Eigen::Vector2d> reactions(const System& sys, const Eigen::VectorXd& X) const {
     std::vector<Eigen::Vector2d> f;
-    for (const auto& e : entries_) f.push_back(cs.reaction(e.part, X, n_nodes));
+    for (const auto& e : entries_)
+      f.push_back(sys.constraints().reaction(e.part, X, sys.number_of_nodes()) +
+                  sys.velocity_traction_force(e.part, X));
     return f;
   }
   std::vector<double> strokes() const {

@@ -19,6 +19,7 @@
 #include <maxentflow/flow/constraints.hpp>
 #include <maxentflow/flow/flow_discretization.hpp>
 #include <maxentflow/flow/stabilized_flow.hpp>
+#include <maxentflow/flow/velocity_traction.hpp>
 
 namespace maxentflow {
 
@@ -71,6 +72,30 @@ class FlowSystem {
           for (int c = 0; c < 2; ++c) traction_[velocity_dof(nodes[j], c)] += w * p[j] * tv[c];
       }
     }
+  }
+
+  /// A velocity-dependent traction on boundary segment `segment` (index into
+  /// mesh.boundary_segments()), grouped under `part` (a tool) for its force:
+  /// R_a -= int phi_a t(x, v) dGamma, and Newton's tangent -int phi_a dt/dv phi_b.
+  /// Its entries fall inside the pattern (the edge's basis nodes belong to its
+  /// triangle's U_T), so the structure does not change.
+  void add_velocity_traction(int part, int segment, VelocityTractionLaw law) {
+    require(segment >= 0 && segment < static_cast<int>(mesh_->boundary_segments().size()),
+            detail::cat("no boundary segment ", segment), "FlowSystem::add_velocity_traction");
+    velocity_tractions_.push_back({part, segment, std::move(law)});
+  }
+  /// Removes the velocity tractions of `part` (a new active set).
+  void clear_velocity_tractions(int part) {
+    std::erase_if(velocity_tractions_, [part](const VelocityTractionTerm& v) { return v.part == part; });
+  }
+  /// The force the workpiece exerts on `part` through its velocity tractions
+  /// at X: -int t dGamma (2 pi r dGamma axisymmetric).
+  Eigen::Vector2d velocity_traction_force(int part, const Eigen::VectorXd& X) const {
+    Eigen::Vector2d f = Eigen::Vector2d::Zero();
+    for_each_traction_point(X, [&](const VelocityTractionTerm& term, double w, auto, auto, const VelocityTraction& vt) {
+      if (term.part == part) f -= w * vt.t;
+    });
+    return f;
   }
 
   /// Unknowns (3N + constraint rows); finalizes the structure after changes.
@@ -156,6 +181,11 @@ class FlowSystem {
     Jv.setZero(pattern_.size());
     assembler_.apply_tangent(v, Jv);
     add_multiplier_terms(v, false, Jv);
+    for_each_traction_point(X, [&](const VelocityTractionTerm&, double w, auto nodes, auto p, const VelocityTraction& vt) {
+      const Eigen::Vector2d dv = vt.dt_dv * Eigen::Vector3d(interpolate_fields(nodes, p, v)).head<2>();
+      for (std::size_t j = 0; j < nodes.size(); ++j)
+        for (int c = 0; c < 2; ++c) Jv[DofLayout::velocity(nodes[j], c)] -= w * p[j] * dv[c];
+    });
   }
 
   void residual(const Eigen::VectorXd& X, Eigen::VectorXd& R) {
@@ -245,6 +275,7 @@ class FlowSystem {
     Eigen::VectorXd fint = Eigen::VectorXd::Zero(nv);
     assembler_.assemble(X, kind, pattern_, A, R, &fint);
     R.head(nv) -= traction_;
+    add_velocity_tractions(X, A, R);
     add_multiplier_terms(X, true, R);
     force_scale_ = fint.norm() + traction_.norm();
     if (!(force_scale_ > 0)) force_scale_ = 1.0;
@@ -268,12 +299,63 @@ class FlowSystem {
     }
   }
 
+  struct VelocityTractionTerm {
+    int part;
+    int segment;
+    VelocityTractionLaw law;
+  };
+  // f(term, w, nodes, p, traction) at every Gauss point of every velocity
+  // traction's segment, with the velocity of X there; w includes 2 pi r.
+  template <class F>
+  void for_each_traction_point(const Eigen::VectorXd& X, F&& f) const {
+    if (velocity_tractions_.empty()) return;
+    const int ne = disc_->points_per_edge();
+    const auto& tab = disc_->edge_basis();
+    constexpr double two_pi = 6.283185307179586476925;
+    for (const auto& term : velocity_tractions_) {
+      const auto& seg = mesh_->boundary_segments()[static_cast<std::size_t>(term.segment)];
+      for (int k = 0; k < ne; ++k) {
+        const int ge = seg.edge * ne + k;
+        const Eigen::Vector2d x = disc_->edge_points().col(ge);
+        const double w = disc_->edge_weights()(ge) * (disc_->axisymmetric() ? two_pi * x.x() : 1.0);
+        const auto nodes = tab.nodes(ge);
+        const auto p = tab.values(ge);
+        const Eigen::Vector2d v = interpolate_fields(nodes, p, X).head<2>();
+        f(term, w, nodes, p, term.law(x, v));
+      }
+    }
+  }
+  // R -= int phi t, and A -= int phi (dt/dv) phi^T (both linearizations).
+  void add_velocity_tractions(const Eigen::VectorXd& X, Matrix* A, Eigen::VectorXd& R) const {
+    for_each_traction_point(X, [&](const VelocityTractionTerm&, double w, auto nodes, auto p, const VelocityTraction& vt) {
+      for (std::size_t i = 0; i < nodes.size(); ++i)
+        for (int c = 0; c < 2; ++c) {
+          R[DofLayout::velocity(nodes[i], c)] -= w * p[i] * vt.t[c];
+          if (!A) continue;
+          for (std::size_t j = 0; j < nodes.size(); ++j)
+            for (int d = 0; d < 2; ++d)
+              entry(*A, DofLayout::velocity(nodes[i], c), DofLayout::velocity(nodes[j], d)) -=
+                  w * p[i] * p[j] * vt.dt_dv(c, d);
+        }
+    });
+  }
+  // A(row, col), which the pattern must hold.
+  static double& entry(Matrix& A, int row, int col) {
+    const int* b = A.innerIndexPtr() + A.outerIndexPtr()[col];
+    const int* e = A.innerIndexPtr() + A.outerIndexPtr()[col + 1];
+    const int* it = std::lower_bound(b, e, row);
+    MAXENTFLOW_REQUIRE(it != e && *it == row, detail::cat("entry (", row, ", ", col, ") is not in the pattern"),
+                       "FlowSystem::add_velocity_tractions");
+    return A.valuePtr()[it - A.innerIndexPtr()];
+  }
+
   const Mesh* mesh_;
   const FlowDiscretization* disc_;
   Assembler assembler_;
   ConstraintSet constraints_;
   SystemPattern pattern_;
   Eigen::VectorXd traction_;
+  std::vector<VelocityTractionTerm> velocity_tractions_;
   std::vector<std::pair<int, int>> entry_pos_;
   std::vector<double> entry_coef_;
   struct LinearCompanion {

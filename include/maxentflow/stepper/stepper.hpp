@@ -382,6 +382,7 @@ class Stepper {
     const double ratio = update_ratio(dt);
     for (int as = 0;; ++as) {
       contact_.add_rows(sys.constraints(), *cfg.mesh, *cfg.disc, *cfg.basis, dt);
+      contact_.add_tractions(sys, *cfg.mesh);
       // The first solve starts from the predictor, a re-solve after an
       // active-set change from the last solve; multipliers from the last
       // solve that had the same row.
@@ -418,8 +419,7 @@ class Stepper {
 
   // The step's loads (on the configuration at its start) and contact nodes.
   void record_loads(const FlowSystem<Material>& sys, const Eigen::VectorXd& X, StepRecord& rec) {
-    const int N = static_cast<int>(x_.cols());
-    rec.tool_force = contact_.reactions(sys.constraints(), X, N);
+    rec.tool_force = contact_.reactions(sys, X);
     rec.tool_stroke = contact_.strokes();
     rec.contact_nodes = contact_.flags(contact_flag_);
   }
