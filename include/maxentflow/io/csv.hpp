@@ -58,8 +58,8 @@ class CsvTable {
   CsvTable& cell(const char* s) { return cell(std::string_view(s)); }
 
   void end_row() {
-    require(in_row_ == columns_,
-            detail::cat("CSV row has ", in_row_, " cells, the header has ", columns_), "CsvTable");
+    MAXENTFLOW_REQUIRE(in_row_ == columns_,
+                       detail::cat("CSV row has ", in_row_, " cells, the header has ", columns_), "CsvTable");
     text_ += '\n';
     in_row_ = 0;
     ++rows_;
@@ -84,7 +84,7 @@ class CsvTable {
 
  private:
   void separator() {
-    require(in_row_ < columns_, detail::cat("CSV row has more than ", columns_, " cells"), "CsvTable");
+    MAXENTFLOW_REQUIRE(in_row_ < columns_, detail::cat("CSV row has more than ", columns_, " cells"), "CsvTable");
     if (in_row_++) text_ += ',';
   }
 

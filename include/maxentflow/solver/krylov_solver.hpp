@@ -257,8 +257,9 @@ class GmresSolver {
   Eigen::VectorXd gmres(Op&& op, Pre&& pre, const Eigen::VectorXd& b, int max_iterations) {
     const Eigen::Index n = b.size();
     Eigen::VectorXd x = Eigen::VectorXd::Zero(n);
-    const int m = std::max(1, prm_.restart);
+    const int m = std::max(1, std::min(prm_.restart, max_iterations));  // the basis a solve can use
     V_.resize(n, m + 1);
+    Z_.resize(n, m);
     H_.setZero(m + 1, m);
     cs_.resize(m);
     sn_.resize(m);
@@ -274,7 +275,8 @@ class GmresSolver {
       int j = 0;
       for (; j < m && last_iterations_ < max_iterations; ++j) {
         ++last_iterations_;
-        w = op(pre(V_.col(j)));
+        Z_.col(j) = pre(V_.col(j));  // kept: x is then a sum of Z's columns, no further solve
+        w = op(Z_.col(j));
         // Classical Gram-Schmidt, repeated once ("twice is enough") for the
         // orthogonality a tight tolerance needs; as matrix-vector products,
         // which stay cheap next to A's product up to the restart length.
@@ -302,10 +304,10 @@ class GmresSolver {
           break;
         }
       }
-      // x += M^-1 V y with H y = g (upper triangular j x j).
+      // x += M^-1 V y = Z y with H y = g (upper triangular j x j).
       const Eigen::VectorXd y =
           H_.topLeftCorner(j, j).template triangularView<Eigen::Upper>().solve(g_.head(j));
-      x += pre(V_.leftCols(j) * y);
+      x.noalias() += Z_.leftCols(j) * y;
       r = b - op(x);
       rnorm = r.norm();
       H_.setZero();
@@ -335,7 +337,7 @@ class GmresSolver {
   Eigen::Index kept_n_ = -1;
   int kept_factorizations_ = 0;
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> Ar_;
-  Eigen::MatrixXd V_, H_;
+  Eigen::MatrixXd V_, Z_, H_;
   Eigen::VectorXd cs_, sn_, g_, h_;
   int last_iterations_ = 0, direct_fallbacks_ = 0;
   double last_residual_ = 0.0;

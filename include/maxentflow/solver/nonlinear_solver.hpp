@@ -148,6 +148,16 @@ struct NonlinearSolverParams {
   /// 1k and 4k nodes), and an LU a step or two old needs 5-20.
   bool kept_lu = true;
   int kept_lu_iterations = 20;
+  /// The LU is also made again, before a solve, once the solves since it was
+  /// made have needed this many GMRES iterations more than its first one did
+  /// (an LU ages as the configuration moves on). A count, as above; E1's run
+  /// time is flat from about 90 to 300 and 20 % longer with no such renewal.
+  int kept_lu_aged_iterations = 100;
+  /// An LU carried into a new solve (the next active set or step) that failed
+  /// there is not tried at the start of the next this-many solves: they make
+  /// their own at once (a configuration that moves fast, as E2's, would lose
+  /// kept_lu_iterations each time).
+  int kept_lu_skip_carry = 4;
   /// The forcing-term cap of those solves: a GMRES iteration with the kept LU
   /// costs a small part of a Newton iteration, so a tighter linear solve that
   /// saves a Newton iteration pays (E1: 2 instead of 3 per step).
@@ -179,6 +189,8 @@ class NonlinearSolver {
     SolveReport rep;
     const int n = sys.size();
     fit_start(X, n);
+    lu_made_this_solve_ = false;
+    if (skip_carry_ > 0) --skip_carry_;
     Linearization phase = prm_.newton && prm_.newton_from_warm_start && sys.velocity_norm(X) > 0
                               ? Linearization::newton
                               : Linearization::picard;
@@ -407,10 +419,18 @@ class NonlinearSolver {
       linear_.factorize_kept(A_);
       rep.factorization_seconds += seconds(t0);
       ++rep.preconditioner_updates;
+      lu_made_this_solve_ = true;
     };
     bool fresh = false;
+    const bool carried = !lu_made_this_solve_;
     if (!kept_lu_current(n)) {
       refactor(linear_.kept_factorizations() == 0 ? "first" : "layout");
+      fresh = true;
+    } else if (carried && skip_carry_ > 0) {
+      refactor("carried LU failed recently");
+      fresh = true;
+    } else if (lu_excess_ >= prm_.kept_lu_aged_iterations) {
+      refactor("aged");
       fresh = true;
     }
     const double eta = std::max(res, 0.5 * prm_.residual_tol / std::max(res, 1e-300));
@@ -425,10 +445,19 @@ class NonlinearSolver {
     linear_its = linear_.last_iterations();
     if (!linear_.converged() && !fresh) {
       rep.solve_seconds += seconds(t0);
+      if (carried) skip_carry_ = prm_.kept_lu_skip_carry + 1;  // counted down at each solve's start
       refactor("slow GMRES");
+      fresh = true;
       t0 = clock::now();
       dx = linear_.solve_kept(tangent, -R, cap);
       linear_its += linear_.last_iterations();
+    }
+    // The LU's age: iterations beyond those of its first solve.
+    if (fresh) {
+      lu_fresh_its_ = linear_.last_iterations();
+      lu_excess_ = 0;
+    } else {
+      lu_excess_ += std::max(0, linear_.last_iterations() - lu_fresh_its_);
     }
     rep.solve_seconds += seconds(t0);
     rep.linear_iterations += linear_its;
@@ -443,6 +472,10 @@ class NonlinearSolver {
   long analyzed_generation_ = -1;
   int analyzed_size_ = -1;
   int picard_since_switch_ = 0;
+  // The kept LU's history: made in the current solve(); solves left that make
+  // their own at once; its first solve's iterations and the excess since.
+  bool lu_made_this_solve_ = false;
+  int skip_carry_ = 0, lu_fresh_its_ = 0, lu_excess_ = 0;
   double rate_ = 0.0, fresh_rate_ = -1.0;  // Krylov iterations per decade: last, after the last refresh
 };
 
