@@ -56,21 +56,13 @@ class FlowSystem {
   /// F_a += int phi_a t dGamma (2 pi r dGamma axisymmetric).
   void add_traction(const SegmentSelector& select, const Traction& t) {
     const auto& X = mesh_->nodes();
-    const int ne = disc_->points_per_edge();
-    const auto& tab = disc_->edge_basis();
-    constexpr double two_pi = 6.283185307179586476925;
     for (const auto& seg : mesh_->boundary_segments()) {
       if (!select(X.col(seg.a), X.col(seg.b))) continue;
-      for (int k = 0; k < ne; ++k) {
-        const int ge = seg.edge * ne + k;
-        const Eigen::Vector2d x = disc_->edge_points().col(ge);
-        const double w = disc_->edge_weights()(ge) * (disc_->axisymmetric() ? two_pi * x.x() : 1.0);
+      for_each_segment_point(seg, [&](const Eigen::Vector2d& x, double w, auto nodes, auto p) {
         const Eigen::Vector2d tv = t(x);
-        const auto nodes = tab.nodes(ge);
-        const auto p = tab.values(ge);
         for (std::size_t j = 0; j < nodes.size(); ++j)
           for (int c = 0; c < 2; ++c) traction_[velocity_dof(nodes[j], c)] += w * p[j] * tv[c];
-      }
+      });
     }
   }
 
@@ -308,21 +300,25 @@ class FlowSystem {
   // traction's segment, with the velocity of X there; w includes 2 pi r.
   template <class F>
   void for_each_traction_point(const Eigen::VectorXd& X, F&& f) const {
-    if (velocity_tractions_.empty()) return;
+    for (const auto& term : velocity_tractions_)
+      for_each_segment_point(mesh_->boundary_segments()[static_cast<std::size_t>(term.segment)],
+                             [&](const Eigen::Vector2d& x, double w, auto nodes, auto p) {
+                               const Eigen::Vector3d fx = interpolate_fields(nodes, p, X);
+                               f(term, w, nodes, p, term.law(x, fx.head<2>()));
+                             });
+  }
+  // f(x, w, nodes, p) at each Gauss point of a boundary segment: the point,
+  // its weight (2 pi r dGamma axisymmetric), the basis nodes and values there.
+  template <class F>
+  void for_each_segment_point(const BoundarySegment& seg, F&& f) const {
     const int ne = disc_->points_per_edge();
     const auto& tab = disc_->edge_basis();
     constexpr double two_pi = 6.283185307179586476925;
-    for (const auto& term : velocity_tractions_) {
-      const auto& seg = mesh_->boundary_segments()[static_cast<std::size_t>(term.segment)];
-      for (int k = 0; k < ne; ++k) {
-        const int ge = seg.edge * ne + k;
-        const Eigen::Vector2d x = disc_->edge_points().col(ge);
-        const double w = disc_->edge_weights()(ge) * (disc_->axisymmetric() ? two_pi * x.x() : 1.0);
-        const auto nodes = tab.nodes(ge);
-        const auto p = tab.values(ge);
-        const Eigen::Vector2d v = interpolate_fields(nodes, p, X).head<2>();
-        f(term, w, nodes, p, term.law(x, v));
-      }
+    for (int k = 0; k < ne; ++k) {
+      const int ge = seg.edge * ne + k;
+      const Eigen::Vector2d x = disc_->edge_points().col(ge);
+      const double w = disc_->edge_weights()(ge) * (disc_->axisymmetric() ? two_pi * x.x() : 1.0);
+      f(x, w, tab.nodes(ge), tab.values(ge));
     }
   }
   // R -= int phi t, and A -= int phi (dt/dv) phi^T (both linearizations).
