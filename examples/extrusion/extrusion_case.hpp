@@ -19,6 +19,7 @@ struct Setup {
   double rezone_min = 0.35, rezone_max = 2.5;
   Predictor predictor = Predictor::spatial;  ///< steady flow through the die
   NodeUpdate node_update = StepperParams{}.node_update;
+  AnyContactLaw law = Frictionless{};  ///< on the ram and the die
   double opening() const { return (1.0 - reduction) * height; }
 };
 
@@ -63,9 +64,10 @@ Stepper<NortonHoff, Linear> make_simulation(const Setup& s) {
   const Eigen::Vector2d along = s.axisymmetric ? Eigen::Vector2d(0, -1) : Eigen::Vector2d(1, 0);
   RigidTool ram = flat_plate("ram", to_model(s, {0, 0.5 * H}), along, 0.75 * H);
   ram.set_velocity(s.V * along);
-  sim.add_tool(ram);
+  sim.add_tool(ram, s.law);
   sim.add_tool(extrusion_die("die", to_model(s, {L, s.opening()}), along, H - s.opening(), s.land, 0.0,
-                             1.5 * L, H - s.opening()));
+                             1.5 * L, H - s.opening()),
+               s.law);
   const Eigen::Vector2d across = s.axisymmetric ? Eigen::Vector2d(1, 0) : Eigen::Vector2d(0, 1);
   sim.add_velocity_condition({"axis", on_line({0, 0}, across, 1e-9 * H), across, 0.0});
   return sim;

@@ -22,6 +22,7 @@
 
 #include <maxentflow/maxentflow.hpp>
 
+#include "common/friction.hpp"
 #include "common/plotting.hpp"
 #include "extrusion/extrusion_case.hpp"
 
@@ -126,6 +127,7 @@ struct Options {
   int steps = 100, vtu_every = 10;
   std::string out = "results/extrusion", node_update = "ab2";
   std::vector<int> convergence;
+  examples::FrictionOptions friction;
 };
 
 void add_options(CLI::App& app, Setup& s, Options& o) {
@@ -159,6 +161,7 @@ void add_options(CLI::App& app, Setup& s, Options& o) {
       ->check(CLI::Range(1, 100000));
   app.add_option("--out-dir", o.out, "Results folder");
   app.add_flag("--no-plots", o.no_plots, "Skip the PNG figures");
+  o.friction.add_to(app);
   app.add_flag("--verbose", o.verbose, "Log every nonlinear iteration");
   app.add_flag("--check", o.check,
                "Exit 1 unless: no penetration, area change < --area-tol, product width within 5 % of the "
@@ -282,17 +285,19 @@ std::vector<std::string> failed_checks(const Setup& s, const Options& o, const R
 
 int main(int argc, char** argv) {
   // 1. Options: every parameter of the case on the command line.
-  CLI::App app{"maxentflow E2: plane-strain forward extrusion (paper Figs. 6-7)"};
+  CLI::App app{"maxentflow E2: forward extrusion (paper Figs. 6-7)"};
   Setup s;
   Options o;
   add_options(app, s, o);
   CLI11_PARSE(app, argc, argv);
   s.node_update = o.node_update == "ab2" ? NodeUpdate::adams_bashforth2 : NodeUpdate::euler;
+  s.law = o.friction.law(s.V);
   const fs::path dir(o.out);
   try {
     if (!o.convergence.empty()) return convergence(s, o.convergence, dir, o.check);
     // 2. The case (extrusion_case.hpp): billet nodes, the ram and the die as
-    //    frictionless rigid tools, v_y = 0 on the axis, rezoning.
+    //    rigid tools (frictionless unless a friction option is given), v_y = 0
+    //    on the axis, rezoning.
     Stepper<NortonHoff> sim = make_simulation(s);
     sim.set_log(&std::cout);
     if (o.verbose) sim.parameters().solver.log = &std::cout;
@@ -314,6 +319,7 @@ int main(int argc, char** argv) {
               << "  step-1 axis pressure " << m.first.p_axis[0] << " at the ram to "
               << m.first.p_axis[m.first.p_axis.size() - 1] << " at the die; largest rise " << f.rise / f.range
               << " of the range; die-face peak at y = " << f.peak_y << "\n"
+              << "  friction: " << o.friction.describe() << "\n"
               << "results in " << dir << " (step.pvd: open in ParaView)\n";
 
     // 5. Figures: pressure and velocity maps, ram force against stroke, the

@@ -17,6 +17,7 @@
 
 #include <maxentflow/maxentflow.hpp>
 
+#include "common/friction.hpp"
 #include "common/plotting.hpp"
 
 namespace fs = std::filesystem;
@@ -25,13 +26,24 @@ using namespace maxentflow;
 namespace {
 
 struct Options {
-  bool plane_strain = false, no_plots = false;
+  bool plane_strain = false, no_plots = false, verbose = false;
   int nx = 21, ny = 25, steps = 100, vtu_every = 10;
   double tol0 = StepperParams{}.tol0;
   double radius = 10, height = 12, V = 0.06, dt = 1.0, gamma = 1.6, Cs = 0.5, mu0 = 150, n = 0.2;
   double alpha = 1.3, check = -1;
   std::string out = "results/upsetting", node_update = "ab2";
+  examples::FrictionOptions friction;
 };
+
+// The largest radius of the nodes in contact with the top plate (tool 1).
+double top_contact_radius(const Stepper<NortonHoff>& sim) {
+  double r = 0;
+  const auto& x = sim.nodes_solved();
+  for (Eigen::Index a = 0; a < x.cols(); ++a)
+    if (sim.contact_flags()[static_cast<std::size_t>(a)] == 2 && x(1, a) > 0.5 * x.row(1).maxCoeff())
+      r = std::max(r, x(0, a));
+  return r;
+}
 
 void add_options(CLI::App& app, Options& o) {
   app.add_flag("--plane-strain", o.plane_strain, "Plane strain (a strip of half width --radius) instead of axisymmetric");
@@ -55,6 +67,8 @@ void add_options(CLI::App& app, Options& o) {
       ->check(CLI::IsMember({"euler", "ab2"}));
   app.add_option("--out-dir", o.out, "Results folder");
   app.add_flag("--no-plots", o.no_plots, "Skip the PNG figures");
+  app.add_flag("--verbose", o.verbose, "Log every nonlinear iteration");
+  o.friction.add_to(app);
   app.add_option("--check", o.check, "Fail (exit 1) if the plate force misses the exact one by more than this");
 }
 
@@ -70,12 +84,17 @@ double exact_force(const NortonHoff& material, bool axi, double V, double H, dou
 
 int main(int argc, char** argv) {
   // 1. Options: every parameter of the case on the command line.
-  CLI::App app{"maxentflow E1: frictionless upsetting (paper Fig. 5)"};
+  CLI::App app{"maxentflow E1: upsetting (paper Fig. 5; frictionless unless a friction option is given)"};
   Options o;
   add_options(app, o);
   CLI11_PARSE(app, argc, argv);
   const bool axi = !o.plane_strain;
   const fs::path dir(o.out);
+  if (o.check >= 0 && !o.friction.frictionless()) {
+    std::cerr << "upsetting: --check compares with the exact frictionless solution; it does not apply with "
+              << o.friction.describe() << " friction\n";
+    return 2;
+  }
   try {
     // 2. Nodes: a regular grid on the billet's half section (r or x, z).
     Eigen::Matrix2Xd x(2, o.nx * o.ny);
@@ -95,15 +114,18 @@ int main(int argc, char** argv) {
     const NortonHoff material(o.mu0, o.n, 1e-6 * o.V / o.height);
     Stepper<NortonHoff> sim(x, material, prm);
 
-    // 4. Tools and conditions: two frictionless plates, the top one moving
-    //    down at V; v_r = 0 on the axis (v_x = 0 on the symmetry line).
+    // 4. Tools and conditions: two plates with the chosen friction law
+    //    (frictionless by default), the top one moving down at V; v_r = 0 on
+    //    the axis (v_x = 0 on the symmetry line).
     const double wide = 100 * (o.radius + o.height);
-    sim.add_tool(flat_plate("bottom plate", {0, 0}, {0, 1}, wide));
+    const AnyContactLaw law = o.friction.law(o.V);
+    sim.add_tool(flat_plate("bottom plate", {0, 0}, {0, 1}, wide), law);
     RigidTool top = flat_plate("top plate", {0, o.height}, {0, -1}, wide);
     top.set_velocity({0, -o.V});
-    sim.add_tool(top);
+    sim.add_tool(top, law);
     sim.add_velocity_condition({axi ? "axis" : "symmetry", on_line({0, 0}, {1, 0}, 1e-9 * o.radius), {1, 0}, 0.0});
     sim.set_log(&std::cout);
+    if (o.verbose) sim.parameters().solver.log = &std::cout;
 
     // 5. March: each step's results, and the plate force against the exact
     //    one on the solved configuration and on the continuum path
@@ -112,7 +134,7 @@ int main(int argc, char** argv) {
     ResultsWriter results(dir);
     CsvTable exact({"step", "time", "stroke", "height", "radius", "force", "force_exact", "rel_error",
                     "force_continuum"});
-    double worst = 0, worst_path = 0, worst_volume = 0;
+    double worst = 0, worst_path = 0, worst_volume = 0, ratio_first = 0, ratio_last = 0, bulge = 0;
     const double volume0 = axi ? M_PI * o.radius * o.radius * o.height : o.radius * o.height;
     for (int k = 1; k <= o.steps; ++k) {
       const auto& r = sim.step();
@@ -125,6 +147,9 @@ int main(int argc, char** argv) {
       worst = std::max(worst, err);
       worst_path = std::max(worst_path, std::abs(Fh - Fc) / Fc);
       worst_volume = std::max(worst_volume, std::abs((axi ? M_PI * R * R * H : R * H) / volume0 - 1));
+      ratio_last = Fh / F;
+      if (k == 1) ratio_first = ratio_last;
+      bulge = R - top_contact_radius(sim);
       exact.cell(k).cell(r.time - r.dt).cell(r.tool_stroke[1]).cell(H).cell(R).cell(Fh).cell(F).cell(err).cell(Fc);
       exact.end_row();
     }
@@ -137,7 +162,12 @@ int main(int argc, char** argv) {
     std::cout << "upsetting: " << o.steps << " steps, " << x.cols() << " nodes, " << total
               << " s; plate force vs exact (V" << (axi ? 2 : 1) << "): max relative error " << worst
               << "\n  against the continuum path: force " << worst_path << ", volume " << 100 * worst_volume
-              << " % (node update " << o.node_update << ")\nresults in " << dir << " (step.pvd: open in ParaView)\n";
+              << " % (node update " << o.node_update << ")\n";
+    if (!o.friction.frictionless())
+      std::cout << "  " << o.friction.describe() << ": plate force / frictionless exact " << ratio_first
+                << " at step 1, " << ratio_last << " at the end; bulge (largest radius - top contact radius) "
+                << bulge << "\n";
+    std::cout << "results in " << dir << " (step.pvd: open in ParaView)\n";
     if (!o.no_plots) {
       std::ostringstream args;
       const int mid = (o.steps + 1) / 2;

@@ -214,28 +214,50 @@ TEST_CASE("a solve that cannot converge in the allowed iterations throws with it
 
 TEST_CASE("a velocity-dependent boundary traction: its Newton tangent, matrix and matrix-free",
           "[flow][solver][friction]") {
-  // Regularized Tresca-like friction on the top face (normal +y, tool at rest):
-  // t = -tau0 (2/pi) atan(v_x / v0) e_x, dt/dv_x = -tau0 (2/pi) / v0 / (1 + (v_x/v0)^2).
-  const double tau0 = 30.0, v0 = 0.01, H = 3;
+  // Regularized Tresca friction on the top face (normal +y, tool at rest),
+  // with the material's shear flow stress k of the face's triangles:
+  // t = -m k (2/pi) atan(v_x / v0) e_x, dt/dv_x = -m k (2/pi) / v0 / (1 + (v_x/v0)^2),
+  // dt/dk = -m (2/pi) atan(v_x / v0) e_x.
+  const double m = 0.5, v0 = 0.01, H = 3;
   auto P = compression(0.2, true);
   const auto& segs = P.mesh.boundary_segments();
   int on_top = 0;
-  for (std::size_t k = 0; k < segs.size(); ++k)
-    if (std::abs(P.mesh.nodes()(1, segs[k].a) - H) < 1e-9 && std::abs(P.mesh.nodes()(1, segs[k].b) - H) < 1e-9) {
-      P.system->add_velocity_traction(7, static_cast<int>(k), [=](const Eigen::Vector2d&, const Eigen::Vector2d& v) {
-        VelocityTraction vt;
-        const double s = v.x() / v0;
-        vt.t.x() = -tau0 * M_2_PI * std::atan(s);
-        vt.dt_dv(0, 0) = -tau0 * M_2_PI / v0 / (1 + s * s);
-        return vt;
-      });
-      ++on_top;
-    }
+  double k_min = 1e300, k_max = 0.0;
+  auto add_friction = [&](bool with_dk) {
+    on_top = 0;
+    for (std::size_t k = 0; k < segs.size(); ++k)
+      if (std::abs(P.mesh.nodes()(1, segs[k].a) - H) < 1e-9 && std::abs(P.mesh.nodes()(1, segs[k].b) - H) < 1e-9) {
+        P.system->add_velocity_traction(7, static_cast<int>(k), [=, &k_min, &k_max](const TractionPointState& q) {
+          VelocityTraction vt;
+          const double s = q.v.x() / v0;
+          vt.t.x() = -m * q.k * M_2_PI * std::atan(s);
+          vt.dt_dv(0, 0) = -m * q.k * M_2_PI / v0 / (1 + s * s);
+          if (with_dk) vt.dt_dk.x() = -m * M_2_PI * std::atan(s);
+          k_min = std::min(k_min, q.k);
+          k_max = std::max(k_max, q.k);
+          return vt;
+        });
+        ++on_top;
+      }
+  };
+  add_friction(true);
   REQUIRE(on_top >= 10);
   NonlinearSolver<> solver;
   Eigen::VectorXd X;
   const SolveReport rep = solver.solve(*P.system, X);
   CHECK(rep.converged);
+  // k = sigma_eq / sqrt(3) of Norton-Hoff at the face's strain rates: of the
+  // order of the flow stress at the mean rate (0.2 / 3 here), and varying
+  // along the face, whose strain rate friction makes nonuniform.
+  k_min = 1e300;
+  k_max = 0.0;
+  Eigen::VectorXd R0;
+  P.system->residual(X, R0);  // k at the solution
+  const NortonHoff law;
+  const double k_mean = law.flow_stress(0.1 / 3 * 2 / std::sqrt(3.0)) / std::sqrt(3.0);
+  CHECK(k_min > 0.3 * k_mean);
+  CHECK(k_max < 3.0 * k_mean);
+  CHECK(k_max > 1.01 * k_min);
   // The force on the "tool" opposes the traction: +x where the face slides +x.
   const Eigen::Vector2d F = P.system->velocity_traction_force(7, X);
   CHECK(F.x() > 0);
@@ -255,7 +277,11 @@ TEST_CASE("a velocity-dependent boundary traction: its Newton tangent, matrix an
   CHECK((fd - an).norm() <= 1e-6 * an.norm());
   P.system->apply_tangent(X, dX, Jv);
   CHECK((Jv - an).norm() <= 1e-12 * an.norm());
-  // Without the traction's dt/dv the tangent is visibly off.
+  // Without dt/dk (k held fixed), or with no traction at all, the tangent is visibly off.
+  P.system->clear_velocity_tractions(7);
+  add_friction(false);
+  P.system->assemble(X, Linearization::newton, A, R);
+  CHECK((fd - A * dX).norm() > 1e-4 * an.norm());
   P.system->clear_velocity_tractions(7);
   P.system->assemble(X, Linearization::newton, A, R);
   CHECK((fd - A * dX).norm() > 1e-4 * an.norm());

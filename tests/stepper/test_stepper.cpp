@@ -444,7 +444,9 @@ struct ConstantShear {
                   std::vector<ContactCondition>& out) const {
     out.push_back(normal_contact(c, tool, dt));
   }
-  VelocityTraction traction(const ContactTractionPoint& q) const { return {tau * q.tangent(), Eigen::Matrix2d::Zero()}; }
+  VelocityTraction traction(const ContactTractionPoint& q) const {
+    return {tau * q.tangent(), Eigen::Matrix2d::Zero(), Eigen::Vector2d::Zero()};
+  }
 };
 static_assert(TractionContactLaw<ConstantShear> && !TractionContactLaw<Belt>);
 
@@ -529,6 +531,64 @@ TEST_CASE("contact laws: a traction law from outside the library acts on the con
   // The face spreads less, and the press needs more force.
   CHECK(shear.mean_tangential < 0.8 * slip.mean_tangential);
   CHECK(shear.rec.tool_force[1].y() > 1.05 * slip.rec.tool_force[1].y());
+}
+
+TEST_CASE("Tresca friction: its traction's derivatives, the frictionless limit, the load rising with m",
+          "[stepper][contact][friction]") {
+  // The law alone: t = -m k (2/pi) atan(|v_s| / v0) v_s / |v_s|, against finite differences.
+  const Tresca law(0.4, 0.01);
+  ContactTractionPoint q;
+  q.normal = Eigen::Vector2d(0.6, -0.8);
+  q.v_tool = Eigen::Vector2d(0.0, -0.05);
+  q.k = 50.0;
+  for (const Eigen::Vector2d& v : {Eigen::Vector2d(0.03, 0.01), Eigen::Vector2d(1e-4, -2e-4), Eigen::Vector2d(-2.0, 1.0)}) {
+    q.v = v;
+    const VelocityTraction vt = law.traction(q);
+    CHECK(vt.t.norm() <= law.m * q.k * (1 + 1e-14));
+    CHECK(std::abs(vt.t.dot(q.normal)) < 1e-14 * q.k);  // tangential
+    CHECK(vt.t.dot(q.slip()) <= 0.0);                   // opposes the slip
+    for (int c = 0; c < 2; ++c) {
+      const double h = 1e-7 * std::max(v.norm(), 1e-3);
+      ContactTractionPoint p = q, m = q;
+      p.v[c] += h;
+      m.v[c] -= h;
+      const Eigen::Vector2d fd = (law.traction(p).t - law.traction(m).t) / (2 * h);
+      CHECK((fd - vt.dt_dv.col(c)).norm() <= 1e-6 * (vt.dt_dv.norm() + 1e-12));
+    }
+    ContactTractionPoint pk = q;
+    pk.k += 1.0;
+    CHECK((law.traction(pk).t - vt.t - vt.dt_dk).norm() <= 1e-12 * vt.t.norm() + 1e-300);
+  }
+  // Fast slip: the full friction stress m k.
+  q.v = Eigen::Vector2d(0.8 * 100, 0.6 * 100 - 0.05);
+  CHECK(law.traction(q).t.norm() == Approx(law.m * q.k).epsilon(2e-4));
+  CHECK_THROWS_AS(Tresca(1.2, 0.01), Error);
+  CHECK_THROWS_AS(Tresca(0.3, 0.0), Error);
+
+  // In a step: m = 0 is the frictionless step; the press load and the drag
+  // on the face rise with m, and m = 1 approaches sticking.
+  const double v0 = 1e-3;  // 2 % of the plate speed
+  const LawRun slip = press_block(Frictionless{});
+  const LawRun zero = press_block(Tresca(0.0, v0));
+  const LawRun stick = press_block(Sticking{});
+  CHECK(zero.law == "tresca");
+  CHECK(zero.rec.tool_force[1].y() == Approx(slip.rec.tool_force[1].y()).epsilon(1e-12));
+  CHECK(zero.rec.tool_force[1].x() == 0.0);
+  CHECK(std::abs(zero.mean_tangential - slip.mean_tangential) <= 1e-12 * slip.mean_tangential);
+  double last_F = slip.rec.tool_force[1].y(), last_spread = slip.mean_tangential;
+  for (double m : {0.2, 0.5, 1.0}) {
+    CAPTURE(m);
+    const LawRun r = press_block(Tresca(m, v0));
+    const double F = r.rec.tool_force[1].y();
+    CHECK(F > last_F);
+    CHECK(r.mean_tangential < last_spread);
+    CHECK(r.rec.tool_force[1].x() > 0);  // friction pulls the plate outward
+    last_F = F;
+    last_spread = r.mean_tangential;
+  }
+  // m = 1 with the shear stress capped at k: below sticking, within a few per cent.
+  CHECK(last_F <= stick.rec.tool_force[1].y() * (1 + 1e-3));
+  CHECK(last_F >= 0.95 * stick.rec.tool_force[1].y());
 }
 
 TEST_CASE("step control is a policy: a controller that never retries fails at the first attempt",

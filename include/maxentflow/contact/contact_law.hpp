@@ -2,6 +2,7 @@
 // the workpiece nodes it touches (docs/architecture.md).
 #pragma once
 
+#include <cmath>
 #include <concepts>
 #include <memory>
 #include <string>
@@ -11,6 +12,7 @@
 #include <Eigen/Core>
 
 #include <maxentflow/contact/rigid_tool.hpp>
+#include <maxentflow/core/error.hpp>
 #include <maxentflow/flow/velocity_traction.hpp>
 
 namespace maxentflow {
@@ -54,6 +56,8 @@ struct ContactTractionPoint {
   Eigen::Vector2d normal = Eigen::Vector2d::Zero();  ///< the tool's outward normal there
   Eigen::Vector2d v = Eigen::Vector2d::Zero();       ///< the workpiece's velocity
   Eigen::Vector2d v_tool = Eigen::Vector2d::Zero();  ///< the tool's velocity
+  /// The workpiece's shear flow stress there, sigma_eq / sqrt(3) (TractionPointState::k).
+  double k = 0.0;
   /// The tool's tangent: the normal turned by +90 degrees.
   Eigen::Vector2d tangent() const { return {-normal.y(), normal.x()}; }
   /// The slip velocity: the tangential part of v - v_tool.
@@ -98,7 +102,52 @@ struct Sticking {
   }
 };
 
-static_assert(ContactLaw<Frictionless> && ContactLaw<Sticking>);
+/// Tresca friction with shear factor m: the friction stress m k opposes the
+/// slip v_s, with k = sigma_eq / sqrt(3) of the material at the contact
+/// (ContactTractionPoint::k), smoothed at small slip as flow-formulation codes
+/// do (Chen & Kobayashi):
+///   t = -m k (2/pi) atan(|v_s| / v0) v_s / |v_s|,
+/// v0 a small slip velocity (e.g. 1e-2 of the tool speed): below it the
+/// stress falls linearly to zero, so the law is smooth and Newton converges.
+/// The normal condition is the frictionless one.
+struct Tresca {
+  double m = 0.0;   ///< shear factor in [0, 1]
+  double v0 = 0.0;  ///< slip velocity scale of the smoothing (> 0)
+  Tresca(double m_, double v0_) : m(m_), v0(v0_) {
+    MAXENTFLOW_REQUIRE(std::isfinite(m) && m >= 0.0 && m <= 1.0,
+                       detail::cat("shear factor m must be in [0, 1], got ", m), "Tresca");
+    MAXENTFLOW_REQUIRE(std::isfinite(v0) && v0 > 0.0,
+                       detail::cat("the smoothing slip velocity v0 must be > 0, got ", v0), "Tresca");
+  }
+  static std::string name() { return "tresca"; }
+  void conditions(const ContactPoint& c, const RigidTool& tool, double dt,
+                  std::vector<ContactCondition>& out) const {
+    out.push_back(normal_contact(c, tool, dt));
+  }
+  /// t = -m k f(|v_s|) v_s with f(s) = (2/pi) atan(s / v0) / s, and
+  /// dt/dv = -m k (f P + f'(s)/s v_s v_s^T), P = I - n n^T; dt/dk = -m f v_s.
+  VelocityTraction traction(const ContactTractionPoint& q) const {
+    constexpr double two_over_pi = 0.63661977236758134308;
+    const Eigen::Vector2d vs = q.slip();
+    const double s = vs.norm(), r = s / v0;
+    double f = 0.0, df_over_s = 0.0;
+    if (r < 1e-4) {  // series: atan(r)/r = 1 - r^2/3 + ...
+      f = two_over_pi / v0 * (1.0 - r * r / 3.0);
+      df_over_s = -two_over_pi * 2.0 / (3.0 * v0 * v0 * v0);
+    } else {
+      f = two_over_pi * std::atan(r) / s;
+      df_over_s = (two_over_pi / (v0 * (1.0 + r * r)) - f) / (s * s);
+    }
+    const Eigen::Matrix2d P = Eigen::Matrix2d::Identity() - q.normal * q.normal.transpose();
+    VelocityTraction out;
+    out.t = -m * q.k * f * vs;
+    out.dt_dv = -m * q.k * (f * P + df_over_s * vs * vs.transpose());
+    out.dt_dk = -m * f * vs;
+    return out;
+  }
+};
+
+static_assert(ContactLaw<Frictionless> && ContactLaw<Sticking> && TractionContactLaw<Tresca>);
 
 /// Any ContactLaw, held by value semantics so that each tool of one simulation
 /// can carry its own law type (the concept is checked where a law is given).

@@ -8,6 +8,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -68,13 +69,16 @@ class FlowSystem {
 
   /// A velocity-dependent traction on boundary segment `segment` (index into
   /// mesh.boundary_segments()), grouped under `part` (a tool) for its force:
-  /// R_a -= int phi_a t(x, v) dGamma, and Newton's tangent -int phi_a dt/dv phi_b.
-  /// Its entries fall inside the pattern (the edge's basis nodes belong to its
-  /// triangle's U_T), so the structure does not change.
+  /// R_a -= int phi_a t(x, v, k) dGamma, and Newton's tangent
+  /// -int phi_a (dt/dv phi_b + dt/dk dk/dV_b), k the shear flow stress of the
+  /// segment's triangle (TractionPointState). Its entries fall inside the
+  /// pattern (the edge's basis nodes belong to its triangle's U_T, which the
+  /// pattern couples), so the structure does not change.
   void add_velocity_traction(int part, int segment, VelocityTractionLaw law) {
     require(segment >= 0 && segment < static_cast<int>(mesh_->boundary_segments().size()),
             detail::cat("no boundary segment ", segment), "FlowSystem::add_velocity_traction");
-    velocity_tractions_.push_back({part, segment, std::move(law)});
+    const int edge = mesh_->boundary_segments()[static_cast<std::size_t>(segment)].edge;
+    velocity_tractions_.push_back({part, segment, mesh_->edges()[static_cast<std::size_t>(edge)].left, std::move(law)});
   }
   /// Removes the velocity tractions of `part` (a new active set).
   void clear_velocity_tractions(int part) {
@@ -84,7 +88,8 @@ class FlowSystem {
   /// at X: -int t dGamma (2 pi r dGamma axisymmetric).
   Eigen::Vector2d velocity_traction_force(int part, const Eigen::VectorXd& X) const {
     Eigen::Vector2d f = Eigen::Vector2d::Zero();
-    for_each_traction_point(X, [&](const VelocityTractionTerm& term, double w, auto, auto, const VelocityTraction& vt) {
+    for_each_traction_point(X, [&](const VelocityTractionTerm& term, double w, auto, auto, const VelocityTraction& vt,
+                                   const CellFlowStress&) {
       if (term.part == part) f -= w * vt.t;
     });
     return f;
@@ -173,10 +178,14 @@ class FlowSystem {
     Jv.setZero(pattern_.size());
     assembler_.apply_tangent(v, Jv);
     add_multiplier_terms(v, false, Jv);
-    for_each_traction_point(X, [&](const VelocityTractionTerm&, double w, auto nodes, auto p, const VelocityTraction& vt) {
-      const Eigen::Vector2d dv = vt.dt_dv * Eigen::Vector3d(interpolate_fields(nodes, p, v)).head<2>();
+    for_each_traction_point(X, [&](const VelocityTractionTerm&, double w, auto nodes, auto p, const VelocityTraction& vt,
+                                   const CellFlowStress& k) {
+      double dk = 0.0;
+      for (std::size_t j = 0; j < k.u.size(); ++j)
+        dk += k.dk_dv[2 * j] * v[DofLayout::velocity(k.u[j], 0)] + k.dk_dv[2 * j + 1] * v[DofLayout::velocity(k.u[j], 1)];
+      const Eigen::Vector2d dt = vt.dt_dv * Eigen::Vector3d(interpolate_fields(nodes, p, v)).head<2>() + vt.dt_dk * dk;
       for (std::size_t j = 0; j < nodes.size(); ++j)
-        for (int c = 0; c < 2; ++c) Jv[DofLayout::velocity(nodes[j], c)] -= w * p[j] * dv[c];
+        for (int c = 0; c < 2; ++c) Jv[DofLayout::velocity(nodes[j], c)] -= w * p[j] * dt[c];
     });
   }
 
@@ -294,18 +303,72 @@ class FlowSystem {
   struct VelocityTractionTerm {
     int part;
     int segment;
+    int cell;  // the segment's triangle
     VelocityTractionLaw law;
   };
-  // f(term, w, nodes, p, traction) at every Gauss point of every velocity
+  // The shear flow stress k = sqrt(3) mu(d) d of a triangle at X, from its
+  // mean strain rate (Gauss-weighted), and dk/dV over its nodes U_T.
+  struct CellFlowStress {
+    std::span<const int> u;
+    std::vector<double> dk_dv;  // (dk/dv_x, dk/dv_y) per node of u
+    double k = 0.0;
+  };
+  CellFlowStress cell_flow_stress(int t, const Eigen::VectorXd& X, const Eigen::Vector2d& x) const {
+    CellFlowStress c;
+    c.u = disc_->nodes(t);
+    const std::size_t n = c.u.size();
+    std::vector<double> gx(n, 0.0), gy(n, 0.0), hr(n, 0.0);  // mean d/dx, d/dy, 1/r (hoop)
+    const bool axi = disc_->axisymmetric();
+    double W = 0.0;
+    for (int q = 0; q < disc_->points_per_cell(); ++q) {
+      const int g = t * disc_->points_per_cell() + q;
+      const double w = disc_->weight(g), r = disc_->points()(0, g);
+      const double* p = disc_->values(t, q);
+      const double* dp = disc_->gradients(t, q);
+      W += w;
+      for (std::size_t i = 0; i < n; ++i) {
+        gx[i] += w * dp[2 * i];
+        gy[i] += w * dp[2 * i + 1];
+        if (axi) hr[i] += w * p[i] / r;
+      }
+    }
+    double ex = 0.0, ey = 0.0, et = 0.0, gam = 0.0;  // D_xx, D_yy, D_tt, 2 D_xy
+    for (std::size_t i = 0; i < n; ++i) {
+      gx[i] /= W;
+      gy[i] /= W;
+      hr[i] /= W;
+      const double vx = X[DofLayout::velocity(c.u[i], 0)], vy = X[DofLayout::velocity(c.u[i], 1)];
+      ex += gx[i] * vx;
+      ey += gy[i] * vy;
+      et += hr[i] * vx;
+      gam += gy[i] * vx + gx[i] * vy;
+    }
+    const double d = std::sqrt(2.0 / 3.0 * (ex * ex + ey * ey + et * et + 0.5 * gam * gam));
+    const Viscosity visc = assembler_.material().viscosity(MaterialPoint{d, x});
+    constexpr double sqrt3 = 1.7320508075688772935;
+    c.k = sqrt3 * visc.mu * d;
+    c.dk_dv.assign(2 * n, 0.0);
+    if (d > 0) {  // dk/dd (2/3) Q D / d
+      const double a = sqrt3 * (visc.mu + d * d * visc.dmu_dd_over_d) * (2.0 / 3.0) / d;
+      for (std::size_t i = 0; i < n; ++i) {
+        c.dk_dv[2 * i] = a * (ex * gx[i] + et * hr[i] + 0.5 * gam * gy[i]);
+        c.dk_dv[2 * i + 1] = a * (ey * gy[i] + 0.5 * gam * gx[i]);
+      }
+    }
+    return c;
+  }
+  // f(term, w, nodes, p, traction, k) at every Gauss point of every velocity
   // traction's segment, with the velocity of X there; w includes 2 pi r.
   template <class F>
   void for_each_traction_point(const Eigen::VectorXd& X, F&& f) const {
-    for (const auto& term : velocity_tractions_)
-      for_each_segment_point(mesh_->boundary_segments()[static_cast<std::size_t>(term.segment)],
-                             [&](const Eigen::Vector2d& x, double w, auto nodes, auto p) {
-                               const Eigen::Vector3d fx = interpolate_fields(nodes, p, X);
-                               f(term, w, nodes, p, term.law(x, fx.head<2>()));
-                             });
+    for (const auto& term : velocity_tractions_) {
+      const BoundarySegment& seg = mesh_->boundary_segments()[static_cast<std::size_t>(term.segment)];
+      const CellFlowStress k = cell_flow_stress(term.cell, X, 0.5 * (mesh_->nodes().col(seg.a) + mesh_->nodes().col(seg.b)));
+      for_each_segment_point(seg, [&](const Eigen::Vector2d& x, double w, auto nodes, auto p) {
+        const Eigen::Vector3d fx = interpolate_fields(nodes, p, X);
+        f(term, w, nodes, p, term.law(TractionPointState{x, fx.head<2>(), k.k}), k);
+      });
+    }
   }
   // f(x, w, nodes, p) at each Gauss point of a boundary segment: the point,
   // its weight (2 pi r dGamma axisymmetric), the basis nodes and values there.
@@ -321,17 +384,22 @@ class FlowSystem {
       f(x, w, tab.nodes(ge), tab.values(ge));
     }
   }
-  // R -= int phi t, and A -= int phi (dt/dv) phi^T (both linearizations).
+  // R -= int phi t, and A -= int phi (dt/dv phi^T + dt/dk dk/dV) (both
+  // linearizations: the friction law is part of the operator Picard freezes).
   void add_velocity_tractions(const Eigen::VectorXd& X, Matrix* A, Eigen::VectorXd& R) const {
-    for_each_traction_point(X, [&](const VelocityTractionTerm&, double w, auto nodes, auto p, const VelocityTraction& vt) {
+    for_each_traction_point(X, [&](const VelocityTractionTerm&, double w, auto nodes, auto p, const VelocityTraction& vt,
+                                   const CellFlowStress& k) {
       for (std::size_t i = 0; i < nodes.size(); ++i)
         for (int c = 0; c < 2; ++c) {
-          R[DofLayout::velocity(nodes[i], c)] -= w * p[i] * vt.t[c];
+          const int row = DofLayout::velocity(nodes[i], c);
+          R[row] -= w * p[i] * vt.t[c];
           if (!A) continue;
           for (std::size_t j = 0; j < nodes.size(); ++j)
+            for (int d = 0; d < 2; ++d) entry(*A, row, DofLayout::velocity(nodes[j], d)) -= w * p[i] * p[j] * vt.dt_dv(c, d);
+          if (vt.dt_dk[c] == 0.0) continue;
+          for (std::size_t j = 0; j < k.u.size(); ++j)
             for (int d = 0; d < 2; ++d)
-              entry(*A, DofLayout::velocity(nodes[i], c), DofLayout::velocity(nodes[j], d)) -=
-                  w * p[i] * p[j] * vt.dt_dv(c, d);
+              entry(*A, row, DofLayout::velocity(k.u[j], d)) -= w * p[i] * vt.dt_dk[c] * k.dk_dv[2 * j + d];
         }
     });
   }

@@ -1,5 +1,6 @@
-// maxentflow: a boundary traction that depends on the velocity (friction),
-// what FlowSystem integrates and a contact law supplies.
+// maxentflow: a boundary traction that depends on the velocity and on the
+// material's flow stress (friction), what FlowSystem integrates and a contact
+// law supplies.
 #pragma once
 
 #include <functional>
@@ -8,14 +9,25 @@
 
 namespace maxentflow {
 
-/// t, the traction on the workpiece at a boundary point, and dt/dv, its
-/// derivative with respect to the velocity there (Newton's tangent).
+/// What a velocity-dependent traction reads at a boundary Gauss point.
+struct TractionPointState {
+  Eigen::Vector2d x = Eigen::Vector2d::Zero();  ///< the point
+  Eigen::Vector2d v = Eigen::Vector2d::Zero();  ///< the workpiece's velocity there
+  /// The material's shear flow stress k = sigma_eq / sqrt(3) = sqrt(3) mu(d) d
+  /// (incompressible, s = 2 mu D, d = sqrt(2/3 D:D)), with D the mean strain
+  /// rate of the boundary segment's triangle.
+  double k = 0.0;
+};
+
+/// t, the traction on the workpiece at a boundary point, and its derivatives
+/// with respect to the velocity there and to k (Newton's tangent).
 struct VelocityTraction {
   Eigen::Vector2d t = Eigen::Vector2d::Zero();
   Eigen::Matrix2d dt_dv = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d dt_dk = Eigen::Vector2d::Zero();
 };
 
-/// t(x, v) at a boundary point x where the workpiece moves with v.
-using VelocityTractionLaw = std::function<VelocityTraction(const Eigen::Vector2d& x, const Eigen::Vector2d& v)>;
+/// t(state) at a boundary point.
+using VelocityTractionLaw = std::function<VelocityTraction(const TractionPointState&)>;
 
 }  // namespace maxentflow

@@ -395,10 +395,12 @@ class Stepper {
       contact_.remember(cs, X, nf);
       nodal_velocity(cfg.at_nodes, X, v);
       // Free nodes are checked against the tools with the move they will make.
-      if (contact_.update(cs, X, N, x_, move_velocity(v, fields_[k_.velocity], ratio), dt) == 0) {
+      const int changes = contact_.update(cs, X, N, x_, move_velocity(v, fields_[k_.velocity], ratio), dt);
+      if (changes == 0) {
         rec.active_set_iterations += as + 1;
         return;
       }
+      if (prm_.solver.log) *prm_.solver.log << "  active set:" << contact_.last_changes(x_) << '\n';
       if (as + 1 >= prm_.max_active_set_iterations)
         throw Error(detail::cat("the contact active set did not settle in ", as + 1,
                                 " iterations; last changes:", contact_.last_changes(x_)),
