@@ -45,6 +45,22 @@ double top_contact_radius(const Stepper<NortonHoff>& sim) {
   return r;
 }
 
+// Barrelling at the last solve: the free side's radial velocity at mid-height
+// less that at the top plate's edge, over the homogeneous e R / 2 (e x in
+// plane strain): 0 without friction.
+double barrel_rate(const Stepper<NortonHoff>& sim, bool axi, double V) {
+  const auto& x = sim.nodes_solved();
+  const double R = x.row(0).maxCoeff(), H = x.row(1).maxCoeff() - x.row(1).minCoeff();
+  int mid = -1, top = -1;
+  for (Eigen::Index a = 0; a < x.cols(); ++a) {
+    if (x(0, a) < R - 1e-6 * R) continue;
+    if (mid < 0 || std::abs(x(1, a) - H / 2) < std::abs(x(1, mid) - H / 2)) mid = static_cast<int>(a);
+    if (top < 0 || x(1, a) > x(1, top)) top = static_cast<int>(a);
+  }
+  const double homogeneous = (axi ? 0.5 : 1.0) * V / H * R;
+  return (sim.velocity()(0, mid) - sim.velocity()(0, top)) / homogeneous;
+}
+
 void add_options(CLI::App& app, Options& o) {
   app.add_flag("--plane-strain", o.plane_strain, "Plane strain (a strip of half width --radius) instead of axisymmetric");
   app.add_option("--nx", o.nx, "Nodes across the radius (half width)")->check(CLI::Range(3, 2000));
@@ -134,7 +150,7 @@ int main(int argc, char** argv) {
     ResultsWriter results(dir);
     CsvTable exact({"step", "time", "stroke", "height", "radius", "force", "force_exact", "rel_error",
                     "force_continuum"});
-    double worst = 0, worst_path = 0, worst_volume = 0, ratio_first = 0, ratio_last = 0, bulge = 0;
+    double worst = 0, worst_path = 0, worst_volume = 0, ratio_first = 0, ratio_last = 0, bulge = 0, barrel = 0;
     const double volume0 = axi ? M_PI * o.radius * o.radius * o.height : o.radius * o.height;
     for (int k = 1; k <= o.steps; ++k) {
       const auto& r = sim.step();
@@ -148,7 +164,10 @@ int main(int argc, char** argv) {
       worst_path = std::max(worst_path, std::abs(Fh - Fc) / Fc);
       worst_volume = std::max(worst_volume, std::abs((axi ? M_PI * R * R * H : R * H) / volume0 - 1));
       ratio_last = Fh / F;
-      if (k == 1) ratio_first = ratio_last;
+      if (k == 1) {
+        ratio_first = ratio_last;
+        barrel = barrel_rate(sim, axi, o.V);
+      }
       bulge = R - top_contact_radius(sim);
       exact.cell(k).cell(r.time - r.dt).cell(r.tool_stroke[1]).cell(H).cell(R).cell(Fh).cell(F).cell(err).cell(Fc);
       exact.end_row();
@@ -165,8 +184,16 @@ int main(int argc, char** argv) {
               << " % (node update " << o.node_update << ")\n";
     if (!o.friction.frictionless())
       std::cout << "  " << o.friction.describe() << ": plate force / frictionless exact " << ratio_first
-                << " at step 1, " << ratio_last << " at the end; bulge (largest radius - top contact radius) "
-                << bulge << "\n";
+                << " at step 1, " << ratio_last << " at the end; barrelling at step 1 (free side's v_r, "
+                << "mid-height - plate edge, / homogeneous) " << barrel << "; bulge at the end (largest radius - "
+                << "top contact radius) " << bulge << "\n";
+    // One row per run: refinement studies collect these (examples/upsetting/README.md).
+    CsvTable summary({"nx", "ny", "nodes", "law", "steps", "force_ratio_first", "force_ratio_last",
+                      "barrel_rate_first", "bulge_last"});
+    summary.cell(o.nx).cell(o.ny).cell(static_cast<int>(x.cols())).cell(o.friction.describe()).cell(o.steps)
+        .cell(ratio_first).cell(ratio_last).cell(barrel).cell(bulge);
+    summary.end_row();
+    summary.write(dir / "summary.csv");
     std::cout << "results in " << dir << " (step.pvd: open in ParaView)\n";
     if (!o.no_plots) {
       std::ostringstream args;

@@ -287,6 +287,71 @@ TEST_CASE("a velocity-dependent boundary traction: its Newton tangent, matrix an
   CHECK((fd - A * dX).norm() > 1e-4 * an.norm());
 }
 
+TEST_CASE("a traction that reads a multiplier (Coulomb friction): its field, its tangent", "[flow][solver][friction]") {
+  // Coulomb-like friction on the top face, reading the top plate's
+  // multipliers (their direction +y, so the plate pressure is +lambda there):
+  // t = -mu lambda (2/pi) atan(v_x / v0) e_x.
+  const double mu = 0.3, v0 = 0.01, H = 3;
+  auto P = compression(0.2, true);
+  const int top = P.system->constraints().find_part("top");
+  const auto& segs = P.mesh.boundary_segments();
+  int on_top = 0;
+  auto add_friction = [&](bool with_dlambda) {
+    on_top = 0;
+    for (std::size_t k = 0; k < segs.size(); ++k)
+      if (std::abs(P.mesh.nodes()(1, segs[k].a) - H) < 1e-9 && std::abs(P.mesh.nodes()(1, segs[k].b) - H) < 1e-9) {
+        P.system->add_velocity_traction(
+            7, static_cast<int>(k),
+            [=](const TractionPointState& q) {
+              VelocityTraction vt;
+              const double s = q.v.x() / v0;
+              vt.t.x() = -mu * q.lambda * M_2_PI * std::atan(s);
+              vt.dt_dv(0, 0) = -mu * q.lambda * M_2_PI / v0 / (1 + s * s);
+              if (with_dlambda) vt.dt_dlambda.x() = -mu * M_2_PI * std::atan(s);
+              return vt;
+            },
+            top);
+        ++on_top;
+      }
+  };
+  add_friction(true);
+  REQUIRE(on_top >= 10);
+  NonlinearSolver<> solver;
+  Eigen::VectorXd X;
+  REQUIRE(solver.solve(*P.system, X).converged);
+  // The multiplier field integrates to the plate's reaction (hats exact under Gauss).
+  double F = 0.0, lambda_min = 1e300;
+  for (const auto& smp : P.system->velocity_traction_samples(7, X)) {
+    F += smp.w * smp.state.lambda;
+    lambda_min = std::min(lambda_min, smp.state.lambda);
+    CHECK(smp.t.x() == Approx(-mu * smp.state.lambda * M_2_PI * std::atan(smp.state.v.x() / v0)).epsilon(1e-12));
+  }
+  CHECK(F == Approx(P.system->reaction("top", X).y()).epsilon(1e-12));
+  CHECK(lambda_min > 0);  // compressive all along the face
+  CHECK(P.system->velocity_traction_force(7, X).x() > 0);
+  // Newton's tangent includes dt/dlambda dlambda/dLambda (multiplier columns
+  // in the velocity rows), matrix and matrix-free.
+  std::mt19937 rng(9);
+  std::normal_distribution<double> g;
+  Eigen::VectorXd dX(X.size());
+  for (Eigen::Index k = 0; k < X.size(); ++k) dX[k] = g(rng) * (std::abs(X[k]) + 1e-3);
+  SystemPattern::Matrix A;
+  Eigen::VectorXd R, Rp, Rm, Jv;
+  P.system->assemble(X, Linearization::newton, A, R);
+  const double eps = 1e-6;
+  P.system->residual(X + eps * dX, Rp);
+  P.system->residual(X - eps * dX, Rm);
+  const Eigen::VectorXd fd = (Rp - Rm) / (2 * eps), an = A * dX;
+  CHECK((fd - an).norm() <= 1e-6 * an.norm());
+  P.system->apply_tangent(X, dX, Jv);
+  CHECK((Jv - an).norm() <= 1e-12 * an.norm());
+  // Without dt/dlambda the tangent is visibly off.
+  P.system->clear_velocity_tractions(7);
+  add_friction(false);
+  P.system->assemble(X, Linearization::newton, A, R);
+  CHECK((fd - A * dX).norm() > 1e-4 * an.norm());
+}
+
 TEST_CASE("Norton-Hoff viscosity and its derivative", "[flow][material]") {
   const NortonHoff m(150.0, 0.2, 1e-9);
   for (double d : {1e-3, 0.05, 2.0}) {

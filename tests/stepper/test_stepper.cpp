@@ -591,6 +591,206 @@ TEST_CASE("Tresca friction: its traction's derivatives, the frictionless limit, 
   CHECK(last_F >= 0.95 * stick.rec.tool_force[1].y());
 }
 
+namespace {
+// A law that records what its wrapped law reads and gives (the last sweep of
+// a step is the post-processing at the converged solution).
+struct Recorded {
+  Coulomb law;
+  std::shared_ptr<std::vector<std::pair<ContactTractionPoint, Eigen::Vector2d>>> log =
+      std::make_shared<std::vector<std::pair<ContactTractionPoint, Eigen::Vector2d>>>();
+  static constexpr bool reads_pressure = true;
+  std::string name() const { return "recorded coulomb"; }
+  void conditions(const ContactPoint& c, const RigidTool& tool, double dt, std::vector<ContactCondition>& out) const {
+    law.conditions(c, tool, dt, out);
+  }
+  VelocityTraction traction(const ContactTractionPoint& q) const {
+    VelocityTraction vt = law.traction(q);
+    log->emplace_back(q, vt.t);
+    return vt;
+  }
+};
+}  // namespace
+
+TEST_CASE("Coulomb friction: its derivatives, the cap at k, mu = 0 frictionless, the load rising with mu",
+          "[stepper][contact][friction]") {
+  // The law alone: t = -min(mu p_n, k) (2/pi) atan(|v_s| / v0) v_s / |v_s|.
+  const Coulomb law(0.2, 0.01);
+  ContactTractionPoint q;
+  q.normal = Eigen::Vector2d(0.6, -0.8);
+  q.v_tool = Eigen::Vector2d(0.0, -0.05);
+  q.k = 50.0;
+  for (double p_n : {100.0, 400.0}) {  // mu p_n below and above k
+    q.p_n = p_n;
+    for (const Eigen::Vector2d& v : {Eigen::Vector2d(0.03, 0.01), Eigen::Vector2d(-2.0, 1.0)}) {
+      CAPTURE(p_n, v.transpose());
+      q.v = v;
+      const VelocityTraction vt = law.traction(q);
+      CHECK(vt.t.norm() <= std::min(law.mu * p_n, q.k) * (1 + 1e-14));
+      CHECK(std::abs(vt.t.dot(q.normal)) < 1e-14 * q.k);
+      CHECK(vt.t.dot(q.slip()) <= 0.0);
+      for (int c = 0; c < 2; ++c) {
+        const double h = 1e-7 * v.norm();
+        ContactTractionPoint p = q, m = q;
+        p.v[c] += h;
+        m.v[c] -= h;
+        CHECK(((law.traction(p).t - law.traction(m).t) / (2 * h) - vt.dt_dv.col(c)).norm() <= 1e-6 * vt.dt_dv.norm());
+      }
+      // dt/dk where capped, dt/dlambda = -dt/dp_n where not (exact: t is linear in each).
+      ContactTractionPoint pk = q, pp = q;
+      pk.k += 1.0;
+      pp.p_n += 1.0;
+      CHECK((law.traction(pk).t - vt.t - vt.dt_dk).norm() <= 1e-12 * vt.t.norm());
+      CHECK((law.traction(pp).t - vt.t + vt.dt_dlambda).norm() <= 1e-12 * vt.t.norm());
+      CHECK((p_n * law.mu < q.k ? vt.dt_dk : vt.dt_dlambda).norm() == 0.0);
+    }
+  }
+  q.p_n = -5.0;  // tensile: no friction
+  CHECK(law.traction(q).t.norm() == 0.0);
+  CHECK_THROWS_AS(Coulomb(-0.1, 0.01), Error);
+  CHECK_THROWS_AS(Coulomb(0.1, 0.0), Error);
+
+  // In a step: mu = 0 is the frictionless step; the load rises with mu and stays below sticking.
+  const double v0 = 1e-3;
+  const LawRun slip = press_block(Frictionless{});
+  const LawRun zero = press_block(Coulomb(0.0, v0));
+  const LawRun stick = press_block(Sticking{});
+  CHECK(zero.law == "coulomb");
+  CHECK(zero.rec.tool_force[1].y() == Approx(slip.rec.tool_force[1].y()).epsilon(1e-12));
+  CHECK(zero.rec.tool_force[1].x() == 0.0);
+  CHECK(std::abs(zero.mean_tangential - slip.mean_tangential) <= 1e-12 * slip.mean_tangential);
+  double last_F = slip.rec.tool_force[1].y();
+  for (double mu : {0.05, 0.1, 0.3}) {
+    CAPTURE(mu);
+    const LawRun r = press_block(Coulomb(mu, v0));
+    const double F = r.rec.tool_force[1].y();
+    CHECK(F > last_F);
+    CHECK(F < stick.rec.tool_force[1].y());
+    CHECK(r.rec.tool_force[1].x() > 0);
+    last_F = F;
+  }
+
+  // At the converged solution: the friction stress never exceeds k, equals
+  // mu p_n (times the smoothing) where the pressure is below k / mu, and both
+  // regimes occur along the face for this mu (the pressure peaks at the axis).
+  Recorded rec{Coulomb(0.1, v0)};
+  const LawRun r = press_block(rec);
+  REQUIRE(r.law == "recorded coulomb");
+  const auto& log = *rec.log;
+  // The last sweep: back from the end until a point repeats.
+  std::size_t first = log.size();
+  while (first > 0 && std::none_of(log.begin() + static_cast<std::ptrdiff_t>(first), log.end(), [&](const auto& e) {
+           return (e.first.x - log[first - 1].first.x).norm() == 0.0;
+         }))
+    --first;
+  REQUIRE(log.size() - first >= 2 * 6u);
+  int sliding = 0, capped = 0;
+  for (std::size_t i = first; i < log.size(); ++i) {
+    const auto& [pt, t] = log[i];
+    const double smooth = M_2_PI * std::atan(pt.slip().norm() / v0);
+    CHECK(t.norm() <= pt.k * (1 + 1e-12));
+    CHECK(pt.p_n > 0);
+    if (0.1 * pt.p_n < pt.k) {
+      CHECK(t.norm() == Approx(0.1 * pt.p_n * smooth).epsilon(1e-12));
+      if (smooth > 0.95) ++sliding;
+    } else {
+      CHECK(t.norm() == Approx(pt.k * smooth).epsilon(1e-12));
+      ++capped;
+    }
+  }
+  CHECK(sliding > 0);
+  INFO("Gauss points with mu p_n >= k: " << capped);
+}
+
+TEST_CASE("sticking upsetting (E1): the first-step force over the frictionless one converges below the slab estimate",
+          "[stepper][contact][friction]") {
+  // E1's billet (R 10, H 12, axisymmetric) between sticking plates, one step
+  // from rest on grids nx x ny: F / F_frictionless, which Avitzur's slab
+  // method bounds crudely from above by 1 + 2 m R / (3 sqrt(3) H) = 1.321
+  // (m = 1); and the free side barrels.
+  const double R0 = 10, H0 = 12, V = 0.06;
+  const NortonHoff mat(150.0, 0.2, 1e-6 * V / H0);
+  const double e = V / H0, F0 = 3 * mat.viscosity(e).mu * e * M_PI * R0 * R0;
+  std::vector<double> ratio;
+  for (const auto& [nx, ny] : {std::pair{6, 7}, std::pair{11, 13}, std::pair{21, 25}}) {
+    StepperParams prm;
+    prm.geometry = Geometry::axisymmetric;
+    prm.dt = 1.0;
+    Stepper<NortonHoff> s(block_nodes(nx, ny, R0, H0, false), mat, prm);
+    s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100), Sticking{});
+    RigidTool top = flat_plate("top", {0, H0}, {0, -1}, 100);
+    top.set_velocity({0, -V});
+    s.add_tool(top, Sticking{});
+    s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+    ratio.push_back(s.step().tool_force[1].y() / F0);
+    // The free side: v_r at mid-height well above v_r at the plate's edge.
+    const auto& x = s.nodes_solved();
+    const auto& v = s.velocity();
+    const Eigen::Index mid = nx * (ny / 2) + nx - 1, corner = nx * ny - 1;
+    REQUIRE(x(0, mid) == Approx(R0));
+    REQUIRE(x(1, corner) == Approx(H0));
+    CHECK(v(0, mid) - v(0, corner) > 0.5 * e * R0 / 2);
+  }
+  INFO("F / F_frictionless on 6 x 7, 11 x 13, 21 x 25: " << ratio[0] << ", " << ratio[1] << ", " << ratio[2]);
+  CHECK(ratio[2] > 1.15);
+  CHECK(ratio[2] < 1.321);
+  // Converging: each refinement moves the ratio by less than half the last change.
+  CHECK(std::abs(ratio[2] - ratio[1]) < 0.5 * std::abs(ratio[1] - ratio[0]));
+  CHECK(std::abs(ratio[2] - ratio[1]) < 2e-3 * ratio[2]);
+}
+
+TEST_CASE("contact fields on the nodes: the pressure integrates to the press force, friction stress and slip",
+          "[stepper][contact][friction]") {
+  // Frictionless and Tresca: sum p_a int N_a ds over the top plate's contact
+  // nodes is the plate force (plane strain, hat rows only); the friction stress
+  // is m k-like under Tresca (between 0 and the largest k), zero without friction.
+  for (const bool tresca : {false, true}) {
+    CAPTURE(tresca);
+    StepperParams prm;
+    prm.geometry = Geometry::plane_strain;
+    prm.dt = 0.5;
+    Stepper<NortonHoff> s(block_nodes(9, 7, 8, 6, false), NortonHoff(150.0, 0.2, 1e-7), prm);
+    s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
+    RigidTool top = flat_plate("top", {0, 6}, {0, -1}, 100);
+    top.set_velocity({0, -0.05});
+    s.add_tool(std::move(top), tresca ? AnyContactLaw(Tresca(0.5, 1e-3)) : AnyContactLaw(Frictionless{}));
+    s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+    const StepRecord rec = s.step();
+    const auto& pn = s.nodal_field("contact_pressure");
+    const auto& tau = s.nodal_field("friction_stress");
+    const auto& slip = s.nodal_field("slip_velocity");
+    // int N_a ds over the top plate's contact segments.
+    Eigen::VectorXd len = Eigen::VectorXd::Zero(s.nodes_solved().cols());
+    for (const auto& seg : s.mesh().boundary_segments())
+      if (s.contact_flags()[static_cast<std::size_t>(seg.a)] == 2 && s.contact_flags()[static_cast<std::size_t>(seg.b)] == 2) {
+        len[seg.a] += seg.length / 2;
+        len[seg.b] += seg.length / 2;
+      }
+    double F = 0.0;
+    int top_nodes = 0;
+    for (Eigen::Index a = 0; a < s.nodes_solved().cols(); ++a) {
+      const int flag = s.contact_flags()[static_cast<std::size_t>(a)];
+      if (flag == 0) {
+        CHECK(pn(0, a) == 0.0);
+        CHECK(tau(0, a) == 0.0);
+        CHECK(slip.col(a).norm() == 0.0);
+        continue;
+      }
+      CHECK(pn(0, a) > 0);
+      CHECK(std::abs(slip(1, a)) < 1e-12);  // along the plates
+      if (flag != 2) continue;
+      ++top_nodes;
+      F += pn(0, a) * len[a];
+      if (tresca)
+        CHECK((tau(0, a) > 0 && tau(0, a) < 0.5 * 150.0));
+      else
+        CHECK(tau(0, a) == 0.0);
+      if (s.nodes_solved()(0, a) > 1.0) CHECK(slip(0, a) > 0);  // the face spreads outward
+    }
+    REQUIRE(top_nodes >= 7);
+    CHECK(F == Approx(rec.tool_force[1].y()).epsilon(1e-9));
+  }
+}
+
 TEST_CASE("step control is a policy: a controller that never retries fails at the first attempt",
           "[stepper]") {
   struct OneTry {

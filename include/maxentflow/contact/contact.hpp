@@ -137,15 +137,22 @@ class ToolContact {
     for (std::size_t s = 0; s < segs.size(); ++s) {
       if (!active[static_cast<std::size_t>(segs[s].a)] || !active[static_cast<std::size_t>(segs[s].b)]) continue;
       // The tool outlives the system's solve (both belong to one step).
-      sys.add_velocity_traction(part, static_cast<int>(s), [&tool, law](const TractionPointState& p) {
-        ContactTractionPoint q;
-        q.x = p.x;
-        q.normal = tool.closest(p.x).normal;
-        q.v = p.v;
-        q.v_tool = tool.velocity();
-        q.k = p.k;
-        return law.traction(q);
-      });
+      // lambda is the normal multipliers' field: p_n = -lambda, so the
+      // law's dt/dp_n enters the system as dt/dlambda = -dt/dp_n (Coulomb
+      // returns it that way round).
+      sys.add_velocity_traction(
+          part, static_cast<int>(s),
+          [&tool, law](const TractionPointState& p) {
+            ContactTractionPoint q;
+            q.x = p.x;
+            q.normal = tool.closest(p.x).normal;
+            q.v = p.v;
+            q.v_tool = tool.velocity();
+            q.k = p.k;
+            q.p_n = -p.lambda;
+            return law.traction(q);
+          },
+          law.reads_pressure() ? part : -1);
     }
   }
 

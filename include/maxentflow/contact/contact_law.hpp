@@ -2,6 +2,7 @@
 // the workpiece nodes it touches (docs/architecture.md).
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <concepts>
 #include <memory>
@@ -58,6 +59,10 @@ struct ContactTractionPoint {
   Eigen::Vector2d v_tool = Eigen::Vector2d::Zero();  ///< the tool's velocity
   /// The workpiece's shear flow stress there, sigma_eq / sqrt(3) (TractionPointState::k).
   double k = 0.0;
+  /// The contact pressure there, -lambda of the normal hat multipliers
+  /// (TractionPointState::lambda; > 0 compressive), for a law that reads it
+  /// (reads_pressure); 0 for the others.
+  double p_n = 0.0;
   /// The tool's tangent: the normal turned by +90 degrees.
   Eigen::Vector2d tangent() const { return {-normal.y(), normal.x()}; }
   /// The slip velocity: the tangential part of v - v_tool.
@@ -66,11 +71,53 @@ struct ContactTractionPoint {
 
 /// A law that also acts by a traction on its contact segments (friction
 /// stress, not a multiplier): traction(point) gives t on the workpiece and
-/// dt/dv, integrated over the contact segments by FlowSystem.
+/// dt/dv, dt/dk (and dt/dp_n if it reads the contact pressure), integrated
+/// over the contact segments by FlowSystem.
 template <class L>
 concept TractionContactLaw = ContactLaw<L> && requires(const L& law, const ContactTractionPoint& q) {
   { law.traction(q) } -> std::convertible_to<VelocityTraction>;
 };
+
+/// Whether a traction law reads ContactTractionPoint::p_n (a member
+/// `static constexpr bool reads_pressure = true`): its traction then couples
+/// to the normal multipliers.
+template <class L>
+constexpr bool reads_contact_pressure() {
+  if constexpr (requires { L::reads_pressure; })
+    return L::reads_pressure;
+  else
+    return false;
+}
+
+namespace detail {
+// The regularized slip direction of Chen & Kobayashi: g(v_s) = f(|v_s|) v_s
+// with f(s) = (2/pi) atan(s / v0) / s, and dg/dv = f P + f'(s)/s v_s v_s^T
+// (P = I - n n^T), so that a friction stress tau gives t = -tau g.
+struct SlipDirection {
+  Eigen::Vector2d g = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d dg_dv = Eigen::Matrix2d::Zero();
+  double magnitude = 0.0;  ///< |g| = (2/pi) atan(|v_s| / v0), in [0, 1)
+};
+inline SlipDirection slip_direction(const ContactTractionPoint& q, double v0) {
+  constexpr double two_over_pi = 0.63661977236758134308;
+  const Eigen::Vector2d vs = q.slip();
+  const double s = vs.norm(), r = s / v0;
+  double f = 0.0, df_over_s = 0.0;
+  if (r < 1e-4) {  // series: atan(r)/r = 1 - r^2/3 + ...
+    f = two_over_pi / v0 * (1.0 - r * r / 3.0);
+    df_over_s = -two_over_pi * 2.0 / (3.0 * v0 * v0 * v0);
+  } else {
+    f = two_over_pi * std::atan(r) / s;
+    df_over_s = (two_over_pi / (v0 * (1.0 + r * r)) - f) / (s * s);
+  }
+  const Eigen::Matrix2d P = Eigen::Matrix2d::Identity() - q.normal * q.normal.transpose();
+  return {f * vs, f * P + df_over_s * vs * vs.transpose(), f * s};
+}
+inline void require_smoothing(double v0, const char* where) {
+  MAXENTFLOW_REQUIRE(std::isfinite(v0) && v0 > 0.0,
+                     detail::cat("the smoothing slip velocity v0 must be > 0, got ", v0), where);
+}
+}  // namespace detail
 
 /// The normal condition of Eqs. (16)-(17) over a step: the gap at the step end
 /// is zero, g + dt (v - v_tool) . n = 0, so (v . n) = v_tool . n - g / dt (a
@@ -116,38 +163,64 @@ struct Tresca {
   Tresca(double m_, double v0_) : m(m_), v0(v0_) {
     MAXENTFLOW_REQUIRE(std::isfinite(m) && m >= 0.0 && m <= 1.0,
                        detail::cat("shear factor m must be in [0, 1], got ", m), "Tresca");
-    MAXENTFLOW_REQUIRE(std::isfinite(v0) && v0 > 0.0,
-                       detail::cat("the smoothing slip velocity v0 must be > 0, got ", v0), "Tresca");
+    detail::require_smoothing(v0, "Tresca");
   }
   static std::string name() { return "tresca"; }
   void conditions(const ContactPoint& c, const RigidTool& tool, double dt,
                   std::vector<ContactCondition>& out) const {
     out.push_back(normal_contact(c, tool, dt));
   }
-  /// t = -m k f(|v_s|) v_s with f(s) = (2/pi) atan(s / v0) / s, and
-  /// dt/dv = -m k (f P + f'(s)/s v_s v_s^T), P = I - n n^T; dt/dk = -m f v_s.
+  /// t = -m k g(v_s) (detail::slip_direction), dt/dv = -m k dg/dv, dt/dk = -m g.
   VelocityTraction traction(const ContactTractionPoint& q) const {
-    constexpr double two_over_pi = 0.63661977236758134308;
-    const Eigen::Vector2d vs = q.slip();
-    const double s = vs.norm(), r = s / v0;
-    double f = 0.0, df_over_s = 0.0;
-    if (r < 1e-4) {  // series: atan(r)/r = 1 - r^2/3 + ...
-      f = two_over_pi / v0 * (1.0 - r * r / 3.0);
-      df_over_s = -two_over_pi * 2.0 / (3.0 * v0 * v0 * v0);
-    } else {
-      f = two_over_pi * std::atan(r) / s;
-      df_over_s = (two_over_pi / (v0 * (1.0 + r * r)) - f) / (s * s);
-    }
-    const Eigen::Matrix2d P = Eigen::Matrix2d::Identity() - q.normal * q.normal.transpose();
+    const detail::SlipDirection g = detail::slip_direction(q, v0);
     VelocityTraction out;
-    out.t = -m * q.k * f * vs;
-    out.dt_dv = -m * q.k * (f * P + df_over_s * vs * vs.transpose());
-    out.dt_dk = -m * f * vs;
+    out.t = -m * q.k * g.g;
+    out.dt_dv = -m * q.k * g.dg_dv;
+    out.dt_dk = -m * g.g;
     return out;
   }
 };
 
-static_assert(ContactLaw<Frictionless> && ContactLaw<Sticking> && TractionContactLaw<Tresca>);
+/// Coulomb friction with coefficient mu, capped by the material's shear flow
+/// stress: the friction stress tau = min(mu p_n, k) opposes the slip, with the
+/// Tresca law's smoothing,
+///   t = -min(mu p_n, k) (2/pi) atan(|v_s| / v0) v_s / |v_s|,
+/// p_n >= 0 the contact pressure (the normal multiplier; a tensile value
+/// counts as 0). Where mu p_n < k the stress follows the pressure (dt/dp_n),
+/// elsewhere it is Tresca's with m = 1 (dt/dk).
+struct Coulomb {
+  static constexpr bool reads_pressure = true;
+  double mu = 0.0;  ///< friction coefficient (>= 0)
+  double v0 = 0.0;  ///< slip velocity scale of the smoothing (> 0)
+  Coulomb(double mu_, double v0_) : mu(mu_), v0(v0_) {
+    MAXENTFLOW_REQUIRE(std::isfinite(mu) && mu >= 0.0,
+                       detail::cat("friction coefficient mu must be >= 0, got ", mu), "Coulomb");
+    detail::require_smoothing(v0, "Coulomb");
+  }
+  static std::string name() { return "coulomb"; }
+  void conditions(const ContactPoint& c, const RigidTool& tool, double dt,
+                  std::vector<ContactCondition>& out) const {
+    out.push_back(normal_contact(c, tool, dt));
+  }
+  VelocityTraction traction(const ContactTractionPoint& q) const {
+    const detail::SlipDirection g = detail::slip_direction(q, v0);
+    const double p = std::max(q.p_n, 0.0);
+    const bool capped = mu * p >= q.k;
+    const double tau = capped ? q.k : mu * p;
+    VelocityTraction out;
+    out.t = -tau * g.g;
+    out.dt_dv = -tau * g.dg_dv;
+    // dt/dp_n; the system's dt/dlambda = -dt/dp_n (FlowSystem reads lambda).
+    if (capped)
+      out.dt_dk = -g.g;
+    else if (q.p_n > 0.0)
+      out.dt_dlambda = mu * g.g;
+    return out;
+  }
+};
+
+static_assert(ContactLaw<Frictionless> && ContactLaw<Sticking> && TractionContactLaw<Tresca> &&
+              TractionContactLaw<Coulomb> && reads_contact_pressure<Coulomb>() && !reads_contact_pressure<Tresca>());
 
 /// Any ContactLaw, held by value semantics so that each tool of one simulation
 /// can carry its own law type (the concept is checked where a law is given).
@@ -166,6 +239,8 @@ class AnyContactLaw {
   }
   /// Whether the held law is a TractionContactLaw; traction() is zero if not.
   bool has_traction() const { return self_->has_traction(); }
+  /// Whether its traction reads the contact pressure (reads_contact_pressure).
+  bool reads_pressure() const { return self_->reads_pressure(); }
   VelocityTraction traction(const ContactTractionPoint& q) const { return self_->traction(q); }
 
  private:
@@ -175,6 +250,7 @@ class AnyContactLaw {
     virtual void conditions(const ContactPoint&, const RigidTool&, double,
                             std::vector<ContactCondition>&) const = 0;
     virtual bool has_traction() const = 0;
+    virtual bool reads_pressure() const = 0;
     virtual VelocityTraction traction(const ContactTractionPoint&) const = 0;
   };
   template <class L>
@@ -186,6 +262,7 @@ class AnyContactLaw {
       law.conditions(c, tool, dt, out);
     }
     bool has_traction() const override { return TractionContactLaw<L>; }
+    bool reads_pressure() const override { return reads_contact_pressure<L>(); }
     VelocityTraction traction(const ContactTractionPoint& q) const override {
       if constexpr (TractionContactLaw<L>)
         return law.traction(q);

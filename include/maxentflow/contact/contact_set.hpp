@@ -121,6 +121,71 @@ class ContactSet {
                   sys.velocity_traction_force(e.part, X));
     return f;
   }
+  /// Nodal contact fields at X (a solution of sys, a FlowSystem), for
+  /// output, on each node active on a tool (zero elsewhere): the contact
+  /// pressure p_n, the friction stress |tau| and the slip velocity (the
+  /// tangential part of v - v_tool, v the nodal velocity, 2 x N). p_n and a
+  /// sticking law's tau come from the node's hat multipliers, per unit area
+  /// (Lambda_a int N_a ds / int N_a 2 pi r ds axisymmetric); a traction law's
+  /// tau from its Gauss points, lumped with the hats (int N_a |t| / int N_a).
+  template <class System>
+  void contact_fields(System& sys, const Eigen::VectorXd& X, const Eigen::Matrix2Xd& v, Eigen::VectorXd& p_n,
+                      Eigen::VectorXd& tau, Eigen::Matrix2Xd& slip) const {
+    const Mesh& mesh = sys.mesh();
+    const int N = mesh.number_of_nodes();
+    const bool axi = sys.discretization().axisymmetric();
+    constexpr double two_pi = 6.283185307179586476925;
+    p_n.setZero(N);
+    tau.setZero(N);
+    slip.setZero(2, N);
+    const int nv = DofLayout::fields_of(N);
+    const auto& rows = sys.constraints().rows();
+    std::vector<char> active(static_cast<std::size_t>(N));
+    Eigen::VectorXd len(N), len_r(N);
+    for (std::size_t k = 0; k < tools_.size(); ++k) {
+      const Entry& e = entries_[k];
+      // int N_a ds and int N_a r ds over the tool's contact segments (both ends active).
+      std::fill(active.begin(), active.end(), 0);
+      for (const auto& c : e.contact.points()) active[static_cast<std::size_t>(c.node)] = c.active;
+      len.setZero();
+      len_r.setZero();
+      for (const auto& seg : mesh.boundary_segments()) {
+        if (!active[static_cast<std::size_t>(seg.a)] || !active[static_cast<std::size_t>(seg.b)]) continue;
+        const double ra = mesh.nodes()(0, seg.a), rb = mesh.nodes()(0, seg.b);
+        len[seg.a] += seg.length / 2;
+        len[seg.b] += seg.length / 2;
+        len_r[seg.a] += seg.length * (2 * ra + rb) / 6;
+        len_r[seg.b] += seg.length * (ra + 2 * rb) / 6;
+      }
+      // A point row (an isolated contact node) carries a force, not a pressure: 0.
+      auto per_area = [&](int a) {
+        if (!(len[a] > 0)) return 0.0;
+        return axi ? (len_r[a] > 0 ? len[a] / (two_pi * len_r[a]) : 0.0) : 1.0;
+      };
+      for (std::size_t i = 0; i < rows.size(); ++i) {
+        const ConstraintRow& r = rows[i];
+        if (r.part != e.part || r.node < 0) continue;
+        const double lambda = X[nv + static_cast<Eigen::Index>(i)] * per_area(r.node);
+        if (r.role == 0) p_n[r.node] = -lambda;
+        else tau[r.node] = std::abs(lambda);
+      }
+      for (const auto& c : e.contact.points())
+        if (c.active) {
+          const Eigen::Vector2d& n = c.projection.normal;
+          const Eigen::Vector2d dv = v.col(c.node) - tools_[k].velocity();
+          slip.col(c.node) = dv - dv.dot(n) * n;
+        }
+      if (!e.law.has_traction()) continue;
+      Eigen::VectorXd num = Eigen::VectorXd::Zero(N), den = Eigen::VectorXd::Zero(N);
+      for (const auto& smp : sys.velocity_traction_samples(e.part, X))
+        for (int j = 0; j < 2; ++j) {
+          num[smp.end[j]] += smp.hat[j] * smp.w * smp.t.norm();
+          den[smp.end[j]] += smp.hat[j] * smp.w;
+        }
+      for (int a = 0; a < N; ++a)
+        if (den[a] > 0) tau[a] = num[a] / den[a];
+    }
+  }
   std::vector<double> strokes() const {
     std::vector<double> s;
     for (const auto& t : tools_) s.push_back(t.stroke());

@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cmath>
 #include <functional>
+#include <map>
 #include <memory>
 #include <optional>
 #include <span>
@@ -59,7 +60,7 @@ class FlowSystem {
     const auto& X = mesh_->nodes();
     for (const auto& seg : mesh_->boundary_segments()) {
       if (!select(X.col(seg.a), X.col(seg.b))) continue;
-      for_each_segment_point(seg, [&](const Eigen::Vector2d& x, double w, auto nodes, auto p) {
+      for_each_segment_point(seg, [&](const Eigen::Vector2d& x, double w, double, auto nodes, auto p) {
         const Eigen::Vector2d tv = t(x);
         for (std::size_t j = 0; j < nodes.size(); ++j)
           for (int c = 0; c < 2; ++c) traction_[velocity_dof(nodes[j], c)] += w * p[j] * tv[c];
@@ -73,24 +74,64 @@ class FlowSystem {
   /// -int phi_a (dt/dv phi_b + dt/dk dk/dV_b), k the shear flow stress of the
   /// segment's triangle (TractionPointState). Its entries fall inside the
   /// pattern (the edge's basis nodes belong to its triangle's U_T, which the
-  /// pattern couples), so the structure does not change.
-  void add_velocity_traction(int part, int segment, VelocityTractionLaw law) {
+  /// pattern couples).
+  /// With a `multiplier_part` >= 0 the law also reads lambda, the multiplier
+  /// field of that part's role-0 rows at the segment's two ends (a contact's
+  /// normal pressure, for Coulomb friction), and the tangent gets dt/dlambda;
+  /// those rows then couple to both velocity components of the segment's
+  /// basis nodes (structural zeros where the row's direction has none). An
+  /// end without such a row contributes no lambda.
+  void add_velocity_traction(int part, int segment, VelocityTractionLaw law, int multiplier_part = -1) {
     require(segment >= 0 && segment < static_cast<int>(mesh_->boundary_segments().size()),
             detail::cat("no boundary segment ", segment), "FlowSystem::add_velocity_traction");
-    const int edge = mesh_->boundary_segments()[static_cast<std::size_t>(segment)].edge;
-    velocity_tractions_.push_back({part, segment, mesh_->edges()[static_cast<std::size_t>(edge)].left, std::move(law)});
+    const int e = mesh_->boundary_segments()[static_cast<std::size_t>(segment)].edge;
+    const auto& edge = mesh_->edges()[static_cast<std::size_t>(e)];
+    velocity_tractions_.push_back({part, segment, edge.left, std::move(law), multiplier_part, {edge.a, edge.b}, {-1, -1}});
+    if (multiplier_part >= 0) structure_dirty_ = true;
   }
   /// Removes the velocity tractions of `part` (a new active set).
   void clear_velocity_tractions(int part) {
     std::erase_if(velocity_tractions_, [part](const VelocityTractionTerm& v) { return v.part == part; });
   }
+
+  /// One Gauss point of a velocity traction at X: where, its weight (2 pi r
+  /// dGamma axisymmetric), the segment's end nodes (edge order) with their
+  /// hat values there, what the law read and the traction it gave.
+  struct TractionSample {
+    Eigen::Vector2d x = Eigen::Vector2d::Zero();
+    double w = 0.0;
+    int end[2] = {-1, -1};
+    double hat[2] = {0.0, 0.0};
+    TractionPointState state;
+    Eigen::Vector2d t = Eigen::Vector2d::Zero();
+  };
+  /// The Gauss points of `part`'s velocity tractions at X (post-processing:
+  /// friction stress, contact pressure), after an assembly or solve.
+  std::vector<TractionSample> velocity_traction_samples(int part, const Eigen::VectorXd& X) const {
+    require(!structure_dirty_, "the structure changed since the last assembly",
+            "FlowSystem::velocity_traction_samples");
+    std::vector<TractionSample> out;
+    for_each_traction_point(X, [&](const VelocityTractionTerm& term, const TractionGauss& g) {
+      if (term.part != part) return;
+      TractionSample smp;
+      smp.x = g.state.x;
+      smp.w = g.w;
+      smp.end[0] = term.end[0];
+      smp.end[1] = term.end[1];
+      smp.hat[0] = 1.0 - g.s;
+      smp.hat[1] = g.s;
+      smp.state = g.state;
+      smp.t = g.vt.t;
+      out.push_back(smp);
+    });
+    return out;
+  }
   /// The force the workpiece exerts on `part` through its velocity tractions
   /// at X: -int t dGamma (2 pi r dGamma axisymmetric).
   Eigen::Vector2d velocity_traction_force(int part, const Eigen::VectorXd& X) const {
     Eigen::Vector2d f = Eigen::Vector2d::Zero();
-    for_each_traction_point(X, [&](const VelocityTractionTerm& term, double w, auto, auto, const VelocityTraction& vt,
-                                   const CellFlowStress&) {
-      if (term.part == part) f -= w * vt.t;
+    for_each_traction_point(X, [&](const VelocityTractionTerm& term, const TractionGauss& g) {
+      if (term.part == part) f -= g.w * g.vt.t;
     });
     return f;
   }
@@ -178,14 +219,18 @@ class FlowSystem {
     Jv.setZero(pattern_.size());
     assembler_.apply_tangent(v, Jv);
     add_multiplier_terms(v, false, Jv);
-    for_each_traction_point(X, [&](const VelocityTractionTerm&, double w, auto nodes, auto p, const VelocityTraction& vt,
-                                   const CellFlowStress& k) {
-      double dk = 0.0;
+    const int nv = DofLayout::fields_of(number_of_nodes());
+    for_each_traction_point(X, [&](const VelocityTractionTerm& term, const TractionGauss& g) {
+      const CellFlowStress& k = *g.k;
+      double dk = 0.0, dl = 0.0;
       for (std::size_t j = 0; j < k.u.size(); ++j)
         dk += k.dk_dv[2 * j] * v[DofLayout::velocity(k.u[j], 0)] + k.dk_dv[2 * j + 1] * v[DofLayout::velocity(k.u[j], 1)];
-      const Eigen::Vector2d dt = vt.dt_dv * Eigen::Vector3d(interpolate_fields(nodes, p, v)).head<2>() + vt.dt_dk * dk;
-      for (std::size_t j = 0; j < nodes.size(); ++j)
-        for (int c = 0; c < 2; ++c) Jv[DofLayout::velocity(nodes[j], c)] -= w * p[j] * dt[c];
+      for (int e = 0; e < 2; ++e)
+        if (term.row[e] >= 0) dl += g.dlambda[e] * v[nv + term.row[e]];
+      const Eigen::Vector2d dt = g.vt.dt_dv * Eigen::Vector3d(interpolate_fields(g.nodes, g.p, v)).head<2>() +
+                                 g.vt.dt_dk * dk + g.vt.dt_dlambda * dl;
+      for (std::size_t j = 0; j < g.nodes.size(); ++j)
+        for (int c = 0; c < 2; ++c) Jv[DofLayout::velocity(g.nodes[j], c)] -= g.w * g.p[j] * dt[c];
     });
   }
 
@@ -228,6 +273,7 @@ class FlowSystem {
   void update_structure() {
     if (!structure_dirty_) return;
     structure_dirty_ = false;
+    link_traction_multipliers();
     pattern_.set_constraints(constraints_.rows());
     entry_pos_ = constraint_positions(pattern_.matrix());
     entry_coef_.clear();
@@ -305,7 +351,42 @@ class FlowSystem {
     int segment;
     int cell;  // the segment's triangle
     VelocityTractionLaw law;
+    int multiplier_part;  // whose role-0 multipliers the law reads (-1: none)
+    int end[2];           // the edge's end nodes (hat order)
+    int row[2];           // their rows of multiplier_part (-1: none)
   };
+  // Resolves each traction's multiplier rows and gives them both velocity
+  // components of the segment's basis nodes (dt/dlambda is not along the
+  // rows' direction).
+  void link_traction_multipliers() {
+    std::map<std::pair<int, int>, int> row_of;  // (part, node) -> role-0 row
+    auto& rows = constraints_.rows();
+    for (std::size_t i = 0; i < rows.size(); ++i)
+      if (rows[i].role == 0 && rows[i].node >= 0) row_of[{rows[i].part, rows[i].node}] = static_cast<int>(i);
+    const int ne = disc_->points_per_edge();
+    for (auto& term : velocity_tractions_) {
+      for (int e = 0; e < 2; ++e) {
+        term.row[e] = -1;
+        if (term.multiplier_part < 0) continue;
+        const auto it = row_of.find({term.multiplier_part, term.end[e]});
+        if (it == row_of.end()) continue;
+        term.row[e] = it->second;
+        ConstraintRow& r = rows[static_cast<std::size_t>(it->second)];
+        std::map<int, double> c;
+        for (std::size_t j = 0; j < r.dof.size(); ++j) c[r.dof[j]] = r.coef[j];
+        const int edge = mesh_->boundary_segments()[static_cast<std::size_t>(term.segment)].edge;
+        for (int k = 0; k < ne; ++k)
+          for (int node : disc_->edge_basis().nodes(edge * ne + k))
+            for (int d = 0; d < 2; ++d) c.try_emplace(DofLayout::velocity(node, d), 0.0);
+        r.dof.clear();
+        r.coef.clear();
+        for (const auto& [dof, cf] : c) {
+          r.dof.push_back(dof);
+          r.coef.push_back(cf);
+        }
+      }
+    }
+  }
   // The shear flow stress k = sqrt(3) mu(d) d of a triangle at X, from its
   // mean strain rate (Gauss-weighted), and dk/dV over its nodes U_T.
   struct CellFlowStress {
@@ -357,21 +438,48 @@ class FlowSystem {
     }
     return c;
   }
-  // f(term, w, nodes, p, traction, k) at every Gauss point of every velocity
-  // traction's segment, with the velocity of X there; w includes 2 pi r.
+  // A Gauss point of a velocity traction: weight (2 pi r dGamma
+  // axisymmetric), the edge parameter s from end[0], basis nodes and values,
+  // what the law read and gave, the cell's k, and dlambda/dLambda_end.
+  struct TractionGauss {
+    double w, s;
+    std::span<const int> nodes;
+    std::span<const double> p;
+    TractionPointState state;
+    VelocityTraction vt;
+    const CellFlowStress* k;
+    double dlambda[2];
+  };
+  // f(term, gauss) at every Gauss point of every velocity traction's
+  // segment, with the fields of X there.
   template <class F>
   void for_each_traction_point(const Eigen::VectorXd& X, F&& f) const {
+    const int nv = DofLayout::fields_of(number_of_nodes());
+    constexpr double two_pi = 6.283185307179586476925;
     for (const auto& term : velocity_tractions_) {
       const BoundarySegment& seg = mesh_->boundary_segments()[static_cast<std::size_t>(term.segment)];
       const CellFlowStress k = cell_flow_stress(term.cell, X, 0.5 * (mesh_->nodes().col(seg.a) + mesh_->nodes().col(seg.b)));
-      for_each_segment_point(seg, [&](const Eigen::Vector2d& x, double w, auto nodes, auto p) {
-        const Eigen::Vector3d fx = interpolate_fields(nodes, p, X);
-        f(term, w, nodes, p, term.law(TractionPointState{x, fx.head<2>(), k.k}), k);
+      for_each_segment_point(seg, [&](const Eigen::Vector2d& x, double w, double s, auto nodes, auto p) {
+        TractionGauss g{w, s, nodes, p, {}, {}, &k, {0.0, 0.0}};
+        g.state.x = x;
+        g.state.v = interpolate_fields(nodes, p, X).template head<2>();
+        g.state.k = k.k;
+        // The hat multipliers are per unit arc length (ConstraintSet::add_velocity).
+        const double per_area = disc_->axisymmetric() ? 1.0 / (two_pi * x.x()) : 1.0;
+        const double hat[2] = {1.0 - s, s};
+        for (int e = 0; e < 2; ++e)
+          if (term.row[e] >= 0) {
+            g.dlambda[e] = hat[e] * per_area;
+            g.state.lambda += g.dlambda[e] * X[nv + term.row[e]];
+          }
+        g.vt = term.law(g.state);
+        f(term, g);
       });
     }
   }
-  // f(x, w, nodes, p) at each Gauss point of a boundary segment: the point,
-  // its weight (2 pi r dGamma axisymmetric), the basis nodes and values there.
+  // f(x, w, s, nodes, p) at each Gauss point of a boundary segment: the point,
+  // its weight (2 pi r dGamma axisymmetric), its parameter along the edge
+  // (from edge.a), the basis nodes and values there.
   template <class F>
   void for_each_segment_point(const BoundarySegment& seg, F&& f) const {
     const int ne = disc_->points_per_edge();
@@ -381,25 +489,33 @@ class FlowSystem {
       const int ge = seg.edge * ne + k;
       const Eigen::Vector2d x = disc_->edge_points().col(ge);
       const double w = disc_->edge_weights()(ge) * (disc_->axisymmetric() ? two_pi * x.x() : 1.0);
-      f(x, w, tab.nodes(ge), tab.values(ge));
+      f(x, w, disc_->edge_parameter(k), tab.nodes(ge), tab.values(ge));
     }
   }
-  // R -= int phi t, and A -= int phi (dt/dv phi^T + dt/dk dk/dV) (both
-  // linearizations: the friction law is part of the operator Picard freezes).
+  // R -= int phi t, and A -= int phi (dt/dv phi^T + dt/dk dk/dV + dt/dlambda
+  // dlambda/dLambda) (both linearizations: the friction law is part of the
+  // operator Picard freezes).
   void add_velocity_tractions(const Eigen::VectorXd& X, Matrix* A, Eigen::VectorXd& R) const {
-    for_each_traction_point(X, [&](const VelocityTractionTerm&, double w, auto nodes, auto p, const VelocityTraction& vt,
-                                   const CellFlowStress& k) {
-      for (std::size_t i = 0; i < nodes.size(); ++i)
+    const int nv = DofLayout::fields_of(number_of_nodes());
+    for_each_traction_point(X, [&](const VelocityTractionTerm& term, const TractionGauss& g) {
+      const VelocityTraction& vt = g.vt;
+      const CellFlowStress& k = *g.k;
+      const double w = g.w;
+      for (std::size_t i = 0; i < g.nodes.size(); ++i)
         for (int c = 0; c < 2; ++c) {
-          const int row = DofLayout::velocity(nodes[i], c);
-          R[row] -= w * p[i] * vt.t[c];
+          const int row = DofLayout::velocity(g.nodes[i], c);
+          const double wp = w * g.p[i];
+          R[row] -= wp * vt.t[c];
           if (!A) continue;
-          for (std::size_t j = 0; j < nodes.size(); ++j)
-            for (int d = 0; d < 2; ++d) entry(*A, row, DofLayout::velocity(nodes[j], d)) -= w * p[i] * p[j] * vt.dt_dv(c, d);
-          if (vt.dt_dk[c] == 0.0) continue;
-          for (std::size_t j = 0; j < k.u.size(); ++j)
-            for (int d = 0; d < 2; ++d)
-              entry(*A, row, DofLayout::velocity(k.u[j], d)) -= w * p[i] * vt.dt_dk[c] * k.dk_dv[2 * j + d];
+          for (std::size_t j = 0; j < g.nodes.size(); ++j)
+            for (int d = 0; d < 2; ++d) entry(*A, row, DofLayout::velocity(g.nodes[j], d)) -= wp * g.p[j] * vt.dt_dv(c, d);
+          if (vt.dt_dk[c] != 0.0)
+            for (std::size_t j = 0; j < k.u.size(); ++j)
+              for (int d = 0; d < 2; ++d)
+                entry(*A, row, DofLayout::velocity(k.u[j], d)) -= wp * vt.dt_dk[c] * k.dk_dv[2 * j + d];
+          if (vt.dt_dlambda[c] != 0.0)
+            for (int e = 0; e < 2; ++e)
+              if (term.row[e] >= 0) entry(*A, row, nv + term.row[e]) -= wp * vt.dt_dlambda[c] * g.dlambda[e];
         }
     });
   }

@@ -1,6 +1,6 @@
-// maxentflow: a boundary traction that depends on the velocity and on the
-// material's flow stress (friction), what FlowSystem integrates and a contact
-// law supplies.
+// maxentflow: a boundary traction that depends on the velocity, the
+// material's flow stress and a contact multiplier (friction): what
+// FlowSystem integrates and a contact law supplies.
 #pragma once
 
 #include <functional>
@@ -17,6 +17,12 @@ struct TractionPointState {
   /// (incompressible, s = 2 mu D, d = sqrt(2/3 D:D)), with D the mean strain
   /// rate of the boundary segment's triangle.
   double k = 0.0;
+  /// The multiplier traction of a linked constraint part at the point (the
+  /// workpiece feels -lambda e there, e its rows' direction): the hat
+  /// multipliers of the segment's ends interpolated, per unit area (divided
+  /// by 2 pi r when axisymmetric). Zero with no linked part. A contact normal
+  /// e points into the workpiece, so the contact pressure is p_n = -lambda.
+  double lambda = 0.0;
 };
 
 /// t, the traction on the workpiece at a boundary point, and its derivatives
@@ -25,6 +31,7 @@ struct VelocityTraction {
   Eigen::Vector2d t = Eigen::Vector2d::Zero();
   Eigen::Matrix2d dt_dv = Eigen::Matrix2d::Zero();
   Eigen::Vector2d dt_dk = Eigen::Vector2d::Zero();
+  Eigen::Vector2d dt_dlambda = Eigen::Vector2d::Zero();
 };
 
 /// t(state) at a boundary point.

@@ -161,6 +161,10 @@ class Stepper {
     k_.strain_rate = fields_.add("strain_rate", 1);
     k_.strain = fields_.add("effective_strain", 1);
     k_.h0 = fields_.add("h0", 1, false);
+    // On the nodes in contact with a tool (zero elsewhere; ContactSet::contact_fields).
+    k_.contact_pressure = fields_.add("contact_pressure", 1);
+    k_.friction_stress = fields_.add("friction_stress", 1);
+    k_.slip = fields_.add("slip_velocity", 2);
     contact_flag_.assign(static_cast<std::size_t>(n), 0);
   }
 
@@ -441,6 +445,12 @@ class Stepper {
     basis_ = cfg.basis;
     x_solved_ = x_;
     nodal_fields(cfg.at_nodes, X, dt, sys);
+    Eigen::VectorXd p_n, tau;
+    Eigen::Matrix2Xd slip;
+    contact_.contact_fields(sys, X, v, p_n, tau, slip);
+    fields_.flat(k_.contact_pressure) = p_n;
+    fields_.flat(k_.friction_stress) = tau;
+    fields_[k_.slip] = slip;
   }
 
   // The nodes move with the material velocity at their position (the node
@@ -601,6 +611,7 @@ class Stepper {
   NodalFields fields_;
   struct {
     int coef, coef_last, velocity, velocity_last, pressure, strain_rate, strain, h0;
+    int contact_pressure, friction_stress, slip;
   } k_{};
   double dt_last_ = 0.0;  // the step of coefficients_last -> coefficients
   double ab_ratio_ = 0.0;  // this step's dt / the last one's (0: no last velocity)
