@@ -106,14 +106,18 @@ def plot_force(directory, tool, exact):
     fx = [float(r["fx"]) for r in rows]
     fy = [float(r["fy"]) for r in rows]
     use_y = max(abs(v) for v in fy) >= max(abs(v) for v in fx)
+    # The load a press reads: the main component, positive where the tool
+    # pushes the workpiece (forces.csv keeps the signed force on the tool).
+    f = fy if use_y else fx
+    sign = -1.0 if max(f, key=abs) < 0 else 1.0
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
-    ax.plot(stroke, fy if use_y else fx, "o-", ms=3, label="maxentflow")
+    ax.plot(stroke, [sign * v for v in f], "o-", ms=3, label="maxentflow")
     if exact:
         e = read_csv(os.path.join(directory, exact))
-        ax.plot([float(r["stroke"]) for r in e], [float(r["force_exact"]) for r in e], "k--",
+        ax.plot([float(r["stroke"]) for r in e], [sign * float(r["force_exact"]) for r in e], "k--",
                 label="exact (homogeneous flow)")
     ax.set_xlabel("stroke")
-    ax.set_ylabel("force on the %s (%s)" % (tool, "y" if use_y else "x"))
+    ax.set_ylabel("load on the %s (%s%s, as a press reads it)" % (tool, "-" if sign < 0 else "", "F_y" if use_y else "F_x"))
     ax.grid(True, alpha=0.3)
     ax.legend()
     fig.tight_layout()

@@ -22,22 +22,24 @@ namespace {
 
 // Upsetting's tools: a fixed bottom plate, a top plate at H0 moving down at
 // V (both frictionless), and v_x = 0 on the axis (symmetry line) x = 0.
-void add_plates(Stepper<NortonHoff>& s, double H0, double V) {
-  s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
+void add_plates(Stepper<NortonHoff>& s, double H0, double V, const AnyContactLaw& law = Frictionless{}) {
+  s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100), law);
   RigidTool top = flat_plate("top", {0, H0}, {0, -1}, 100);
   top.set_velocity({0, -V});
-  s.add_tool(top);
+  s.add_tool(top, law);
   s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
 }
 
 struct Upset {
   double max_force_error = 0, max_shape_error = 0;
   int steps = 0;
+  std::vector<double> force;  // top plate, per step
 };
 
 // Frictionless upsetting between flat plates (contact, not prescribed
 // velocities): the homogeneous solution V1 / V2 at every step.
-Upset upsetting(Geometry g, int steps, double dt, Predictor predictor = Predictor::material) {
+Upset upsetting(Geometry g, int steps, double dt, Predictor predictor = Predictor::material,
+               const AnyContactLaw& law = Frictionless{}) {
   const double R0 = 10, H0 = 12, V = 0.06;
   const NortonHoff mat(150.0, 0.2, 1e-8);
   StepperParams prm;
@@ -46,7 +48,7 @@ Upset upsetting(Geometry g, int steps, double dt, Predictor predictor = Predicto
   prm.predictor = predictor;
   prm.node_update = NodeUpdate::euler;  // the shape check follows Eq. (18)'s path
   Stepper<NortonHoff> s(block_nodes(7, 8, R0, H0, false), mat, prm);
-  add_plates(s, H0, V);
+  add_plates(s, H0, V, law);
   if (std::getenv("MAXENTFLOW_TEST_LOG")) s.set_log(&std::cout);
   const bool axi = g == Geometry::axisymmetric;
   Upset u;
@@ -65,6 +67,7 @@ Upset upsetting(Geometry g, int steps, double dt, Predictor predictor = Predicto
     u.max_force_error = std::max({u.max_force_error, std::abs(rec.tool_force[1].y() - F) / F,
                                   std::abs(rec.tool_force[0].y() + F) / F,
                                   std::abs(rec.tool_force[1].x()) / F});
+    u.force.push_back(rec.tool_force[1].y());
     const double f = axi ? 1 + e * dt / 2 : 1 + e * dt;
     R *= f;
     sx *= f;
@@ -93,6 +96,25 @@ TEST_CASE("V1 along the stroke: plane-strain compression by contact stays exact"
   CHECK(u.steps == 100);
   CHECK(u.max_force_error < 1e-8);
   CHECK(u.max_shape_error < 1e-8);
+}
+
+TEST_CASE("V1 and V2 along the stroke with m = 0 and mu = 0: the frictionless run to 1e-12",
+          "[verification][stepper][friction]") {
+  // Tresca and Coulomb with a zero coefficient add a zero traction: the same run.
+  for (const Geometry g : {Geometry::axisymmetric, Geometry::plane_strain}) {
+    CAPTURE(g == Geometry::axisymmetric);
+    const auto ref = upsetting(g, 30, 1.0);
+    for (const AnyContactLaw& law : {AnyContactLaw(Tresca(0.0, 6e-4)), AnyContactLaw(Coulomb(0.0, 6e-4))}) {
+      CAPTURE(law.name());
+      const auto u = upsetting(g, 30, 1.0, Predictor::material, law);
+      REQUIRE(u.steps == 30);
+      CHECK(u.max_force_error < 1e-8);
+      CHECK(u.max_shape_error < 1e-8);
+      double diff = 0.0;
+      for (int k = 0; k < 30; ++k) diff = std::max(diff, std::abs(u.force[k] - ref.force[k]) / ref.force[k]);
+      CHECK(diff <= 1e-12);
+    }
+  }
 }
 
 TEST_CASE("V1 with the spatial predictor: the start moves, the solution does not",
@@ -533,6 +555,32 @@ TEST_CASE("contact laws: a traction law from outside the library acts on the con
   CHECK(shear.rec.tool_force[1].y() > 1.05 * slip.rec.tool_force[1].y());
 }
 
+namespace {
+// A friction law's traction at q: at most `bound`, tangential, against the
+// slip; dt/dv against central differences, dt/dk and dt/dp_n (= -dt/dlambda)
+// exact steps (t is linear in k and in p_n on each branch).
+template <class Law>
+void check_friction_traction(const Law& law, const ContactTractionPoint& q, double bound) {
+  const VelocityTraction vt = law.traction(q);
+  CHECK(vt.t.norm() <= bound * (1 + 1e-14));
+  CHECK(std::abs(vt.t.dot(q.normal)) < 1e-14 * q.k);  // tangential
+  CHECK(vt.t.dot(q.slip()) <= 0.0);                   // opposes the slip
+  for (int c = 0; c < 2; ++c) {
+    const double h = 1e-7 * std::max(q.v.norm(), 1e-3);
+    ContactTractionPoint p = q, m = q;
+    p.v[c] += h;
+    m.v[c] -= h;
+    const Eigen::Vector2d fd = (law.traction(p).t - law.traction(m).t) / (2 * h);
+    CHECK((fd - vt.dt_dv.col(c)).norm() <= 1e-6 * (vt.dt_dv.norm() + 1e-12));
+  }
+  ContactTractionPoint pk = q, pp = q;
+  pk.k += 1.0;
+  pp.p_n += 1.0;
+  CHECK((law.traction(pk).t - vt.t - vt.dt_dk).norm() <= 1e-12 * vt.t.norm() + 1e-300);
+  CHECK((law.traction(pp).t - vt.t + vt.dt_dlambda).norm() <= 1e-12 * vt.t.norm() + 1e-300);
+}
+}  // namespace
+
 TEST_CASE("Tresca friction: its traction's derivatives, the frictionless limit, the load rising with m",
           "[stepper][contact][friction]") {
   // The law alone: t = -m k (2/pi) atan(|v_s| / v0) v_s / |v_s|, against finite differences.
@@ -543,21 +591,7 @@ TEST_CASE("Tresca friction: its traction's derivatives, the frictionless limit, 
   q.k = 50.0;
   for (const Eigen::Vector2d& v : {Eigen::Vector2d(0.03, 0.01), Eigen::Vector2d(1e-4, -2e-4), Eigen::Vector2d(-2.0, 1.0)}) {
     q.v = v;
-    const VelocityTraction vt = law.traction(q);
-    CHECK(vt.t.norm() <= law.m * q.k * (1 + 1e-14));
-    CHECK(std::abs(vt.t.dot(q.normal)) < 1e-14 * q.k);  // tangential
-    CHECK(vt.t.dot(q.slip()) <= 0.0);                   // opposes the slip
-    for (int c = 0; c < 2; ++c) {
-      const double h = 1e-7 * std::max(v.norm(), 1e-3);
-      ContactTractionPoint p = q, m = q;
-      p.v[c] += h;
-      m.v[c] -= h;
-      const Eigen::Vector2d fd = (law.traction(p).t - law.traction(m).t) / (2 * h);
-      CHECK((fd - vt.dt_dv.col(c)).norm() <= 1e-6 * (vt.dt_dv.norm() + 1e-12));
-    }
-    ContactTractionPoint pk = q;
-    pk.k += 1.0;
-    CHECK((law.traction(pk).t - vt.t - vt.dt_dk).norm() <= 1e-12 * vt.t.norm() + 1e-300);
+    check_friction_traction(law, q, law.m * q.k);
   }
   // Fast slip: the full friction stress m k.
   q.v = Eigen::Vector2d(0.8 * 100, 0.6 * 100 - 0.05);
@@ -598,7 +632,7 @@ struct Recorded {
   Coulomb law;
   std::shared_ptr<std::vector<std::pair<ContactTractionPoint, Eigen::Vector2d>>> log =
       std::make_shared<std::vector<std::pair<ContactTractionPoint, Eigen::Vector2d>>>();
-  static constexpr bool reads_pressure = true;
+  bool reads_pressure() const { return true; }
   std::string name() const { return "recorded coulomb"; }
   void conditions(const ContactPoint& c, const RigidTool& tool, double dt, std::vector<ContactCondition>& out) const {
     law.conditions(c, tool, dt, out);
@@ -624,28 +658,17 @@ TEST_CASE("Coulomb friction: its derivatives, the cap at k, mu = 0 frictionless,
     for (const Eigen::Vector2d& v : {Eigen::Vector2d(0.03, 0.01), Eigen::Vector2d(-2.0, 1.0)}) {
       CAPTURE(p_n, v.transpose());
       q.v = v;
+      check_friction_traction(law, q, std::min(law.mu * p_n, q.k));
+      // Below the cap the stress follows p_n (dt/dlambda), at the cap k (dt/dk).
       const VelocityTraction vt = law.traction(q);
-      CHECK(vt.t.norm() <= std::min(law.mu * p_n, q.k) * (1 + 1e-14));
-      CHECK(std::abs(vt.t.dot(q.normal)) < 1e-14 * q.k);
-      CHECK(vt.t.dot(q.slip()) <= 0.0);
-      for (int c = 0; c < 2; ++c) {
-        const double h = 1e-7 * v.norm();
-        ContactTractionPoint p = q, m = q;
-        p.v[c] += h;
-        m.v[c] -= h;
-        CHECK(((law.traction(p).t - law.traction(m).t) / (2 * h) - vt.dt_dv.col(c)).norm() <= 1e-6 * vt.dt_dv.norm());
-      }
-      // dt/dk where capped, dt/dlambda = -dt/dp_n where not (exact: t is linear in each).
-      ContactTractionPoint pk = q, pp = q;
-      pk.k += 1.0;
-      pp.p_n += 1.0;
-      CHECK((law.traction(pk).t - vt.t - vt.dt_dk).norm() <= 1e-12 * vt.t.norm());
-      CHECK((law.traction(pp).t - vt.t + vt.dt_dlambda).norm() <= 1e-12 * vt.t.norm());
       CHECK((p_n * law.mu < q.k ? vt.dt_dk : vt.dt_dlambda).norm() == 0.0);
     }
   }
   q.p_n = -5.0;  // tensile: no friction
   CHECK(law.traction(q).t.norm() == 0.0);
+  CHECK(reads_contact_pressure(law));
+  CHECK(!reads_contact_pressure(Coulomb(0.0, 0.01)));  // mu = 0: no coupling at all
+  CHECK(!reads_contact_pressure(Tresca(0.5, 0.01)));
   CHECK_THROWS_AS(Coulomb(-0.1, 0.01), Error);
   CHECK_THROWS_AS(Coulomb(0.1, 0.0), Error);
 

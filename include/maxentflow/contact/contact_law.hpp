@@ -79,12 +79,12 @@ concept TractionContactLaw = ContactLaw<L> && requires(const L& law, const Conta
 };
 
 /// Whether a traction law reads ContactTractionPoint::p_n (a member
-/// `static constexpr bool reads_pressure = true`): its traction then couples
-/// to the normal multipliers.
+/// `bool reads_pressure() const`): its traction then couples to the normal
+/// multipliers.
 template <class L>
-constexpr bool reads_contact_pressure() {
-  if constexpr (requires { L::reads_pressure; })
-    return L::reads_pressure;
+bool reads_contact_pressure(const L& law) {
+  if constexpr (requires { { law.reads_pressure() } -> std::convertible_to<bool>; })
+    return law.reads_pressure();
   else
     return false;
 }
@@ -189,7 +189,6 @@ struct Tresca {
 /// counts as 0). Where mu p_n < k the stress follows the pressure (dt/dp_n),
 /// elsewhere it is Tresca's with m = 1 (dt/dk).
 struct Coulomb {
-  static constexpr bool reads_pressure = true;
   double mu = 0.0;  ///< friction coefficient (>= 0)
   double v0 = 0.0;  ///< slip velocity scale of the smoothing (> 0)
   Coulomb(double mu_, double v0_) : mu(mu_), v0(v0_) {
@@ -198,6 +197,8 @@ struct Coulomb {
     detail::require_smoothing(v0, "Coulomb");
   }
   static std::string name() { return "coulomb"; }
+  /// mu = 0 reads nothing: the frictionless system, not even structural zeros.
+  bool reads_pressure() const { return mu > 0.0; }
   void conditions(const ContactPoint& c, const RigidTool& tool, double dt,
                   std::vector<ContactCondition>& out) const {
     out.push_back(normal_contact(c, tool, dt));
@@ -220,7 +221,7 @@ struct Coulomb {
 };
 
 static_assert(ContactLaw<Frictionless> && ContactLaw<Sticking> && TractionContactLaw<Tresca> &&
-              TractionContactLaw<Coulomb> && reads_contact_pressure<Coulomb>() && !reads_contact_pressure<Tresca>());
+              TractionContactLaw<Coulomb>);
 
 /// Any ContactLaw, held by value semantics so that each tool of one simulation
 /// can carry its own law type (the concept is checked where a law is given).
@@ -262,7 +263,7 @@ class AnyContactLaw {
       law.conditions(c, tool, dt, out);
     }
     bool has_traction() const override { return TractionContactLaw<L>; }
-    bool reads_pressure() const override { return reads_contact_pressure<L>(); }
+    bool reads_pressure() const override { return reads_contact_pressure(law); }
     VelocityTraction traction(const ContactTractionPoint& q) const override {
       if constexpr (TractionContactLaw<L>)
         return law.traction(q);
