@@ -117,6 +117,42 @@ TEST_CASE("V1 and V2 along the stroke with m = 0 and mu = 0: the frictionless ru
   }
 }
 
+TEST_CASE("no silent fallback: the spatial predictor's misses are counted, said in the record, logged once",
+          "[stepper]") {
+  // Plane-strain upsetting: the free side moves outward, so x + dt v of its
+  // nodes lies beyond the configuration's hull and they keep the material
+  // predictor; the step records it, the log says it once per run.
+  for (const Predictor pr : {Predictor::material, Predictor::spatial}) {
+    CAPTURE(pr == Predictor::spatial);
+    StepperParams prm;
+    prm.geometry = Geometry::plane_strain;
+    prm.predictor = pr;
+    Stepper<NortonHoff> s(block_nodes(7, 8, 10, 12, false), NortonHoff(150.0, 0.2, 1e-8), prm);
+    add_plates(s, 12, 0.06);
+    std::ostringstream log;
+    s.set_log(&log);
+    int fallbacks = 0;
+    for (int k = 0; k < 3; ++k) {
+      const StepRecord& r = s.step();
+      fallbacks += r.predictor_fallbacks;
+      CHECK(!r.nodal_gradient_fallback);
+      if (pr == Predictor::spatial) {
+        CHECK(r.predictor_fallbacks >= 8);  // the free side's column, corners included
+        CHECK(r.predictor_fallbacks <= 16);
+        CHECK_THAT(r.degraded, Catch::Contains("spatial predictor") && Catch::Contains("keep the material predictor"));
+      } else {
+        CHECK(r.predictor_fallbacks == 0);
+        CHECK(r.degraded.empty());
+      }
+    }
+    const std::string text = log.str();
+    std::size_t notes = 0;
+    for (std::size_t at = text.find("note (step"); at != std::string::npos; at = text.find("note (step", at + 1)) ++notes;
+    CHECK(notes == (pr == Predictor::spatial ? 1u : 0u));
+    CHECK((fallbacks > 0) == (pr == Predictor::spatial));
+  }
+}
+
 TEST_CASE("V1 with the spatial predictor: the start moves, the solution does not",
           "[verification][stepper]") {
   // The predictor only changes where each solve starts (V + f(x + dt v) - f(x)).

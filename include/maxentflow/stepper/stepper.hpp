@@ -4,6 +4,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -109,6 +110,16 @@ struct StepRecord {
   /// Parts of solve_seconds: assembly (A, R, preconditioner), factorization, linear solves.
   double assembly_seconds = 0.0, factorization_seconds = 0.0, linear_seconds = 0.0;
   std::string note;  ///< retries and their reasons
+  /// What the step degraded instead of failing (each also in `degraded`, and
+  /// logged the first time it happens in a run):
+  /// nodes whose spatial predictor could not be evaluated (x + dt v beyond the
+  /// configuration's hull, e.g. a free surface moving outward) and kept the
+  /// material one;
+  int predictor_fallbacks = 0;
+  /// the nodal strain rate came from the Gauss points because the basis'
+  /// gradients at the nodes failed (a sharp spike of the free surface).
+  bool nodal_gradient_fallback = false;
+  std::string degraded;  ///< what was degraded, and why; empty if nothing
 };
 
 /// Step control (as odeint's controlled steppers): how a step that failed is
@@ -335,7 +346,7 @@ class Stepper {
     t = clock::now();
     if (first) record_loads(sys, X, rec);
     keep_solution(cfg, sys, X, v, dt);
-    move_nodes(cfg, X, v, dt);
+    move_nodes(cfg, X, v, dt, rec);
     rec.post_seconds += since(t);
   }
 
@@ -361,8 +372,11 @@ class Stepper {
     // strain rate then comes from the Gauss points (nodal_fields).
     try {
       cfg.at_nodes = cfg.basis->evaluate(x_, true);
-    } catch (const Error&) {
+    } catch (const Error& e) {
       cfg.at_nodes = cfg.basis->evaluate(x_, false);
+      rec.nodal_gradient_fallback = true;
+      degrade(rec, 0, detail::cat("nodal strain rate from the Gauss points: the basis gradients at the nodes failed (",
+                                  e.what(), ")"));
     }
     rec.basis_seconds += since(t);
     return cfg;
@@ -456,7 +470,8 @@ class Stepper {
   // The nodes move with the material velocity at their position (the node
   // update: AB2 or Eq. (18)), the tools with theirs; then the contact and velocity conditions of the
   // step are made exact on the new positions, and a penetration fails the step.
-  void move_nodes(const Configuration& cfg, const Eigen::VectorXd& X, const Eigen::Matrix2Xd& v, double dt) {
+  void move_nodes(const Configuration& cfg, const Eigen::VectorXd& X, const Eigen::Matrix2Xd& v, double dt,
+                  StepRecord& rec) {
     // Nodes under a velocity condition end the step where it puts them: the
     // hat multipliers impose it on average, and a symmetry-axis node that
     // drifts past the selector's tolerance would lose its condition.
@@ -472,7 +487,7 @@ class Stepper {
         if (c.select(x_.col(seg.a), x_.col(seg.b)))
           for (int a : {seg.a, seg.b}) held.push_back({a, e, e.dot(x_.col(a)) + dt * c.value});
     }
-    if (prm_.predictor == Predictor::spatial) predict_spatial(*cfg.basis, X, v, dt);
+    if (prm_.predictor == Predictor::spatial) predict_spatial(*cfg.basis, X, v, dt, rec);
     x_ += dt * move_velocity(v, fields_[k_.velocity_last], ab_ratio_);
     for (const auto& h : held) x_.col(h.node) += (h.target - h.e.dot(x_.col(h.node))) * h.e;
     MAXENTFLOW_REQUIRE(x_.allFinite(), "node positions became NaN", "Stepper::advance");
@@ -563,11 +578,12 @@ class Stepper {
   // this solve; a node whose new position leaves this configuration's hull
   // (the nose of a product) keeps its coefficients.
   void predict_spatial(const Basis& basis, const Eigen::VectorXd& X, const Eigen::Matrix2Xd& v,
-                       double dt) {
+                       double dt, StepRecord& rec) {
     const int N = static_cast<int>(x_.cols());
     Eigen::Map<Eigen::VectorXd> V = fields_.flat(k_.coef);
     const auto p_nodal = fields_.flat(k_.pressure);
-#pragma omp parallel for schedule(dynamic, 32)
+    int failed = 0, first = N;
+#pragma omp parallel for schedule(dynamic, 32) reduction(+ : failed) reduction(min : first)
     for (int a = 0; a < N; ++a) {
       const Eigen::Vector2d y = x_.col(a) + dt * v.col(a);
       try {
@@ -575,9 +591,23 @@ class Stepper {
         const Eigen::Vector3d f = interpolate_fields(pv.node, pv.p, X);
         V.segment<2>(DofLayout::velocity(a, 0)) += f.head<2>() - v.col(a);
         V[DofLayout::pressure(a)] += f[2] - p_nodal[a];
-      } catch (const Error&) {
+      } catch (const Error&) {  // counted and reported below
+        ++failed;
+        first = std::min(first, a);
       }
     }
+    rec.predictor_fallbacks += failed;
+    if (failed > 0)
+      degrade(rec, 1, detail::cat("spatial predictor: ", failed, " nodes (first: node ", first, " at (",
+                                  x_(0, first), ", ", x_(1, first), ")) move beyond the configuration's hull "
+                                  "and keep the material predictor"));
+  }
+  // Records a degradation of kind `kind` in the step record; logs the first of each kind in the run.
+  void degrade(StepRecord& rec, int kind, const std::string& what) {
+    rec.degraded += what + "\n";
+    if (log_ && !logged_degradation_[static_cast<std::size_t>(kind)])
+      *log_ << "note (step " << step_ + 1 << "; logged once per run, counted in each StepRecord): " << what << '\n';
+    logged_degradation_[static_cast<std::size_t>(kind)] = true;
   }
   // Rezones the cloud x_ (NodeAdaptation) and carries every per-node array
   // to the new numbering; the next solve starts from the transferred fields.
@@ -624,6 +654,7 @@ class Stepper {
   std::shared_ptr<Basis> basis_;
   std::unique_ptr<NonlinearSolver<Linear>> solver_;  // heap: LU factorizations do not move
   std::ostream* log_ = nullptr;
+  std::array<bool, 2> logged_degradation_{};  // gradient fallback, predictor fallback
   double time_ = 0.0;
   int step_ = 0;
 };
