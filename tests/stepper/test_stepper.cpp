@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -516,19 +517,26 @@ struct LawRun {
   std::string law;
 };
 
-// One step of a plane-strain block (half width 8, height 6, symmetry at x = 0)
-// pressed by a top plate carrying `law`; the bottom plate is frictionless.
-LawRun press_block(AnyContactLaw law) {
+// A plane-strain block (half width 8, height 6, symmetry at x = 0) pressed
+// by a top plate (tool 1) carrying `law`; the bottom plate is frictionless.
+std::unique_ptr<Stepper<NortonHoff>> block_press(AnyContactLaw law) {
   StepperParams prm;
   prm.geometry = Geometry::plane_strain;
   prm.dt = 0.5;
-  Stepper<NortonHoff> s(block_nodes(9, 7, 8, 6, false), NortonHoff(150.0, 0.2, 1e-7), prm);
-  s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
+  auto s = std::make_unique<Stepper<NortonHoff>>(block_nodes(9, 7, 8, 6, false), NortonHoff(150.0, 0.2, 1e-7), prm);
+  s->add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
   RigidTool top = flat_plate("top", {0, 6}, {0, -1}, 100);
   top.set_velocity({0, -0.05});
-  const Eigen::Vector2d t = top.closest({1, 7}).normal;  // the top plate's normal, +y
-  s.add_tool(std::move(top), std::move(law));
-  s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+  s->add_tool(std::move(top), std::move(law));
+  s->add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+  return s;
+}
+
+// One step of block_press(law).
+LawRun press_block(AnyContactLaw law) {
+  const auto sim = block_press(std::move(law));
+  auto& s = *sim;
+  const Eigen::Vector2d t = s.tools()[1].closest({1, 7}).normal;  // the top plate's normal, +y
   LawRun p;
   p.rec = s.step();
   p.law = s.contact().law(1).name();
@@ -615,16 +623,27 @@ void check_friction_traction(const Law& law, const ContactTractionPoint& q, doub
   CHECK((law.traction(pk).t - vt.t - vt.dt_dk).norm() <= 1e-12 * vt.t.norm() + 1e-300);
   CHECK((law.traction(pp).t - vt.t + vt.dt_dlambda).norm() <= 1e-12 * vt.t.norm() + 1e-300);
 }
+// A contact point on a tilted tool moving down, with k = 50.
+ContactTractionPoint tilted_point() {
+  ContactTractionPoint q;
+  q.normal = Eigen::Vector2d(0.6, -0.8);
+  q.v_tool = Eigen::Vector2d(0.0, -0.05);
+  q.k = 50.0;
+  return q;
+}
+// A law with a zero coefficient gives the frictionless step.
+void check_frictionless_limit(const LawRun& zero, const LawRun& slip) {
+  CHECK(zero.rec.tool_force[1].y() == Approx(slip.rec.tool_force[1].y()).epsilon(1e-12));
+  CHECK(zero.rec.tool_force[1].x() == 0.0);
+  CHECK(std::abs(zero.mean_tangential - slip.mean_tangential) <= 1e-12 * slip.mean_tangential);
+}
 }  // namespace
 
 TEST_CASE("Tresca friction: its traction's derivatives, the frictionless limit, the load rising with m",
           "[stepper][contact][friction]") {
   // The law alone: t = -m k (2/pi) atan(|v_s| / v0) v_s / |v_s|, against finite differences.
   const Tresca law(0.4, 0.01);
-  ContactTractionPoint q;
-  q.normal = Eigen::Vector2d(0.6, -0.8);
-  q.v_tool = Eigen::Vector2d(0.0, -0.05);
-  q.k = 50.0;
+  ContactTractionPoint q = tilted_point();
   for (const Eigen::Vector2d& v : {Eigen::Vector2d(0.03, 0.01), Eigen::Vector2d(1e-4, -2e-4), Eigen::Vector2d(-2.0, 1.0)}) {
     q.v = v;
     check_friction_traction(law, q, law.m * q.k);
@@ -642,9 +661,7 @@ TEST_CASE("Tresca friction: its traction's derivatives, the frictionless limit, 
   const LawRun zero = press_block(Tresca(0.0, v0));
   const LawRun stick = press_block(Sticking{});
   CHECK(zero.law == "tresca");
-  CHECK(zero.rec.tool_force[1].y() == Approx(slip.rec.tool_force[1].y()).epsilon(1e-12));
-  CHECK(zero.rec.tool_force[1].x() == 0.0);
-  CHECK(std::abs(zero.mean_tangential - slip.mean_tangential) <= 1e-12 * slip.mean_tangential);
+  check_frictionless_limit(zero, slip);
   double last_F = slip.rec.tool_force[1].y(), last_spread = slip.mean_tangential;
   for (double m : {0.2, 0.5, 1.0}) {
     CAPTURE(m);
@@ -685,10 +702,7 @@ TEST_CASE("Coulomb friction: its derivatives, the cap at k, mu = 0 frictionless,
           "[stepper][contact][friction]") {
   // The law alone: t = -min(mu p_n, k) (2/pi) atan(|v_s| / v0) v_s / |v_s|.
   const Coulomb law(0.2, 0.01);
-  ContactTractionPoint q;
-  q.normal = Eigen::Vector2d(0.6, -0.8);
-  q.v_tool = Eigen::Vector2d(0.0, -0.05);
-  q.k = 50.0;
+  ContactTractionPoint q = tilted_point();
   for (double p_n : {100.0, 400.0}) {  // mu p_n below and above k
     q.p_n = p_n;
     for (const Eigen::Vector2d& v : {Eigen::Vector2d(0.03, 0.01), Eigen::Vector2d(-2.0, 1.0)}) {
@@ -714,9 +728,7 @@ TEST_CASE("Coulomb friction: its derivatives, the cap at k, mu = 0 frictionless,
   const LawRun zero = press_block(Coulomb(0.0, v0));
   const LawRun stick = press_block(Sticking{});
   CHECK(zero.law == "coulomb");
-  CHECK(zero.rec.tool_force[1].y() == Approx(slip.rec.tool_force[1].y()).epsilon(1e-12));
-  CHECK(zero.rec.tool_force[1].x() == 0.0);
-  CHECK(std::abs(zero.mean_tangential - slip.mean_tangential) <= 1e-12 * slip.mean_tangential);
+  check_frictionless_limit(zero, slip);
   double last_F = slip.rec.tool_force[1].y();
   for (double mu : {0.05, 0.1, 0.3}) {
     CAPTURE(mu);
@@ -804,15 +816,8 @@ TEST_CASE("contact fields on the nodes: the pressure integrates to the press for
   // is m k-like under Tresca (between 0 and the largest k), zero without friction.
   for (const bool tresca : {false, true}) {
     CAPTURE(tresca);
-    StepperParams prm;
-    prm.geometry = Geometry::plane_strain;
-    prm.dt = 0.5;
-    Stepper<NortonHoff> s(block_nodes(9, 7, 8, 6, false), NortonHoff(150.0, 0.2, 1e-7), prm);
-    s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
-    RigidTool top = flat_plate("top", {0, 6}, {0, -1}, 100);
-    top.set_velocity({0, -0.05});
-    s.add_tool(std::move(top), tresca ? AnyContactLaw(Tresca(0.5, 1e-3)) : AnyContactLaw(Frictionless{}));
-    s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+    const auto sim = block_press(tresca ? AnyContactLaw(Tresca(0.5, 1e-3)) : AnyContactLaw(Frictionless{}));
+    auto& s = *sim;
     const StepRecord rec = s.step();
     const auto& pn = s.nodal_field("contact_pressure");
     const auto& tau = s.nodal_field("friction_stress");
