@@ -8,7 +8,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iostream>
+#include <limits>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -116,6 +118,57 @@ TEST_CASE("V1 and V2 along the stroke with m = 0 and mu = 0: the frictionless ru
       CHECK(diff <= 1e-12);
     }
   }
+}
+
+TEST_CASE("bad stepper input is refused with an Error naming what and where", "[stepper]") {
+  const Eigen::Matrix2Xd nodes = block_nodes(4, 4, 1, 1, false);
+  auto message = [&](const StepperParams& prm, const Eigen::Matrix2Xd& x) -> std::string {
+    try {
+      Stepper<NortonHoff> s(x, NortonHoff(), prm);
+    } catch (const Error& e) {
+      return e.what();
+    }
+    return "";
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN(), inf = std::numeric_limits<double>::infinity();
+  struct Bad {
+    const char* name;
+    std::function<void(StepperParams&)> set;
+  };
+  const std::vector<Bad> bad = {
+      {"dt", [&](StepperParams& p) { p.dt = nan; }},
+      {"dt", [&](StepperParams& p) { p.dt = -1; }},
+      {"gamma", [&](StepperParams& p) { p.gamma = 0; }},
+      {"tol0", [&](StepperParams& p) { p.tol0 = 1.0; }},
+      {"max_active_set_iterations", [&](StepperParams& p) { p.max_active_set_iterations = 0; }},
+      {"max_retries", [&](StepperParams& p) { p.max_retries = -1; }},
+      {"penetration_tol", [&](StepperParams& p) { p.penetration_tol = inf; }},
+      {"snap_tol", [&](StepperParams& p) { p.snap_tol = -0.1; }},
+      {"contact.release_tol", [&](StepperParams& p) { p.contact.release_tol = nan; }},
+      {"solver.velocity_tol", [&](StepperParams& p) { p.solver.velocity_tol = 0; }},
+      {"solver.max_iterations", [&](StepperParams& p) { p.solver.max_iterations = 0; }},
+  };
+  for (const auto& b : bad) {
+    CAPTURE(b.name);
+    StepperParams prm;
+    b.set(prm);
+    const std::string what = message(prm, nodes);
+    CHECK_THAT(what, Catch::Contains(b.name) && Catch::Contains("Stepper"));
+  }
+  Eigen::Matrix2Xd x = nodes;
+  x(1, 5) = nan;
+  CHECK_THAT(message(StepperParams{}, x), Catch::Contains("node 5") && Catch::Contains("non-finite"));
+  CHECK_THAT(message(StepperParams{}, nodes.leftCols(2)), Catch::Contains("at least 3 nodes"));
+  // Parameters changed between steps are checked when the step starts.
+  Stepper<NortonHoff> s(nodes, NortonHoff(), StepperParams{});
+  s.parameters().dt = 0;
+  try {
+    s.step();
+    FAIL("no exception");
+  } catch (const Error& e) {
+    CHECK_THAT(std::string(e.what()), Catch::Contains("dt") && Catch::Contains("Stepper::step 1"));
+  }
+  CHECK(s.steps_done() == 0);
 }
 
 TEST_CASE("no silent fallback: the spatial predictor's misses are counted, said in the record, logged once",

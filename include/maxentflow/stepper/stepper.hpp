@@ -88,6 +88,33 @@ struct StepperParams {
   NodeAdaptivityParams adapt;
   Predictor predictor = Predictor::extrapolated;
   NodeUpdate node_update = NodeUpdate::adams_bashforth2;
+
+  /// Throws Error naming the first parameter out of range (NaN, inf, sign,
+  /// bounds); `where` says who asked. The nested parameters of the mesh,
+  /// basis, assembler and rezoning are checked where those are built.
+  void validate(const std::string& where) const {
+    auto positive = [&](double v, const char* name) {
+      require(std::isfinite(v) && v > 0, detail::cat(name, " must be finite and > 0, got ", v), where);
+    };
+    auto non_negative = [&](double v, const char* name) {
+      require(std::isfinite(v) && v >= 0, detail::cat(name, " must be finite and >= 0, got ", v), where);
+    };
+    positive(dt, "dt");
+    positive(gamma, "gamma");
+    require(std::isfinite(tol0) && tol0 > 0 && tol0 < 1, detail::cat("tol0 must lie in (0, 1), got ", tol0), where);
+    require(max_active_set_iterations >= 1,
+            detail::cat("max_active_set_iterations must be >= 1, got ", max_active_set_iterations), where);
+    require(max_retries >= 0, detail::cat("max_retries must be >= 0, got ", max_retries), where);
+    positive(penetration_tol, "penetration_tol");
+    non_negative(snap_tol, "snap_tol");
+    non_negative(contact.gap_tol, "contact.gap_tol");
+    non_negative(contact.release_tol, "contact.release_tol");
+    non_negative(contact.reentry_tol, "contact.reentry_tol");
+    positive(solver.velocity_tol, "solver.velocity_tol");
+    positive(solver.residual_tol, "solver.residual_tol");
+    require(solver.max_iterations >= 1, detail::cat("solver.max_iterations must be >= 1, got ", solver.max_iterations),
+            where);
+  }
 };
 
 /// What one step did (also one line of the progress log).
@@ -160,8 +187,10 @@ class Stepper {
       : Stepper(std::move(nodes), std::move(material), prm, default_control(prm)) {}
   Stepper(Eigen::Matrix2Xd nodes, Material material, StepperParams prm, Control control)
       : prm_(std::move(prm)), material_(std::move(material)), control_(std::move(control)), x_(std::move(nodes)) {
-    require(prm_.dt > 0 && std::isfinite(prm_.dt), detail::cat("dt must be positive, got ", prm_.dt),
-            "Stepper");
+    prm_.validate("Stepper");
+    require(x_.cols() >= 3, detail::cat("a workpiece needs at least 3 nodes, got ", x_.cols()), "Stepper");
+    for (Eigen::Index a = 0; a < x_.cols(); ++a)
+      require(x_.col(a).allFinite(), detail::cat("node ", a, " has a non-finite coordinate"), "Stepper");
     const auto n = x_.cols();
     fields_ = NodalFields(n);
     k_.coef = fields_.add("coefficients", DofLayout::per_node, false);
@@ -236,6 +265,7 @@ class Stepper {
   /// configuration) is retried as two half steps, up to max_retries halvings.
   /// Throws Error if it cannot recover; the state is then that of the step start.
   const StepRecord& step() {
+    prm_.validate(detail::cat("Stepper::step ", step_ + 1, " (parameters() changed)"));
     const auto t0 = std::chrono::steady_clock::now();
     StepRecord rec;
     rec.step = step_ + 1;
