@@ -130,6 +130,21 @@ TEST_CASE("Support cut-off: only nodes within h sqrt(-ln tol0 / gamma)", "[basis
 
 TEST_CASE("Bad input raises maxentflow::Error with what and where", "[basis][errors]") {
   const auto cloud = grid_cloud("regular", 6);
+  SECTION("no NaN gradients: a point on a node whose neighbours' weights underflow (fuzz_basis)") {
+    Eigen::Matrix2Xd x(2, 8);
+    x << 4, 0.17254901960789998, 0.17254901960784313, 0.17254901960784313, 3, 0.050962116069246541,
+        0.99999999999964473, 0.0234375,  //
+        2, 0.17254901960784313, 0.17254902775691566, 0.31433671631672544, 3, 0.09591444132272349, 1, 1;
+    MaxEntBasis<2>::params prm;
+    prm.gamma = 16.211764705882352;
+    const MaxEntBasis<2> basis(x, prm);
+    try {
+      const auto v = basis.evaluate(Eigen::Vector2d(1, 1), true);
+      for (double g : v.grad) CHECK(std::isfinite(g));
+    } catch (const Error& e) {
+      CHECK_THAT(std::string(e.what()), Contains("not finite"));
+    }
+  }
   SECTION("gamma <= 0") {
     MaxEntBasis<2>::params prm;
     prm.gamma = 0;

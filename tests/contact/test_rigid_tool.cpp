@@ -375,6 +375,12 @@ TEST_CASE("bad input throws maxentflow::Error", "[contact][tool]") {
   using maxentflow::flat_plate;
   using maxentflow::rectangle;
 
+  // A query whose squared distance overflows (found by fuzz_rigid_tool).
+  const RigidTool plate("plate", points({V2(0, 0), V2(1, 0)}));
+  CHECK_THROWS_WITH(plate.closest(V2(1e300, -1e300)), Catch::Contains("too far"));
+  CHECK_THROWS_AS(plate.gap(V2(nan, 0)), Error);
+  CHECK(plate.closest(V2(1e150, -1e150)).gap < 0.0);
+
   // Points.
   CHECK_THROWS_AS(RigidTool("one", points({V2(0, 0)})), Error);
   CHECK_THROWS_AS(RigidTool("two", points({V2(0, 0), V2(1, 0)}), {}, ToolClosure::closed), Error);

@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include <maxentflow/io/atomic_file.hpp>
+#include <maxentflow/io/csv.hpp>
 #include <maxentflow/io/vtk.hpp>
 
 namespace fs = std::filesystem;
@@ -227,4 +228,24 @@ TEST_CASE("PvdCollection lists the steps of a time series", "[io]") {
   CHECK_THROWS_AS(c.add(std::numeric_limits<double>::infinity(), "x.vtu"), Error);
   CHECK_THROWS_AS(c.add(1.0, ""), Error);
   CHECK(dir.stray_tmp() == 0);
+}
+
+TEST_CASE("read_csv: numbers under a header; ragged, non-numeric and non-finite input refused", "[io]") {
+  auto read = [](const std::string& text) {
+    std::istringstream in(text);
+    return maxentflow::read_csv(in, "test");
+  };
+  const auto d = read("x, y\n1, 2.5\n\n-3e2,4\n");
+  REQUIRE(d.header == std::vector<std::string>{"x", "y"});
+  REQUIRE(d.rows.size() == 2);
+  CHECK(d.rows[1][0] == -300.0);
+  CHECK(d.values("y") == std::vector<double>{2.5, 4.0});
+  CHECK_THROWS_AS(d.values("z"), Error);
+  CHECK_THROWS_AS(read(""), Error);
+  CHECK_THROWS_AS(read("x,y\n1\n"), Error);
+  CHECK_THROWS_AS(read("x,y\n1,2,3\n"), Error);
+  CHECK_THROWS_AS(read("x,y\n1,abc\n"), Error);
+  CHECK_THROWS_AS(read("x,y\n1,\n"), Error);
+  for (const char* bad : {"nan", "inf", "-inf", "1e400"})
+    CHECK_THROWS_WITH(read(std::string("x\n") + bad + "\n"), Catch::Contains("not finite"));
 }

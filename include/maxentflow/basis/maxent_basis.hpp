@@ -451,7 +451,19 @@ class MaxEntBasis {
     info.m = m;
     info.iterations = res.iterations;
     info.lambda = res.lambda;
-    if (gradients) info.dlambda = gradients_into(ws, m, res.r, res.J);
+    if (gradients) {
+      info.dlambda = gradients_into(ws, m, res.r, res.J);
+      // Found by libFuzzer: at a point on a node whose neighbours' weights
+      // underflow (a large gamma), J is singular in floating point.
+      const bool finite = info.dlambda.allFinite() &&
+                          std::all_of(ws.grad.begin(), ws.grad.begin() + m * Dim,
+                                      [](double g) { return std::isfinite(g); });
+      if (!finite)
+        throw Error(detail::cat("max-ent gradients are not finite: the dual's covariance J is singular (",
+                                m, " support nodes, det J = ", res.J.determinant(),
+                                "); a smaller gamma or a point off the node"),
+                    where_point(x, id));
+    }
     return info;
   }
 

@@ -126,10 +126,10 @@ inline double bbox_diagonal(const Eigen::Matrix2Xd& p) {
 // Closest point of one piece to x (body frame); `end` is -1 for an interior point,
 // 0 or 1 when the point is the piece's start or end (the joints need their own normal).
 struct PieceFoot {
-  Eigen::Vector2d point;
-  Eigen::Vector2d normal;
-  double distance2;
-  int end;
+  Eigen::Vector2d point = Eigen::Vector2d::Zero();
+  Eigen::Vector2d normal = Eigen::Vector2d::Zero();
+  double distance2 = 0.0;
+  int end = -1;  ///< 0: the piece's start, 1: its end, -1: inside it
 };
 
 inline PieceFoot closest_on_piece(const ToolPiece& p, const Eigen::Vector2d& x) {
@@ -341,6 +341,11 @@ class RigidTool {
         best_piece = static_cast<int>(i);
       }
     }
+    // Found by libFuzzer: a point so far away that every squared distance
+    // overflows matched no piece (and indexed joints_ with garbage).
+    MAXENTFLOW_REQUIRE(std::isfinite(best.distance2),
+                       "the query point is too far from the tool (its distance overflows)",
+                       detail::cat(where("closest"), ", x = (", x.x(), ", ", x.y(), ")"));
     ToolProjection r;
     r.piece = best_piece;
     const Eigen::Vector2d d = xb - best.point;

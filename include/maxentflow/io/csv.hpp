@@ -95,7 +95,7 @@ class CsvTable {
 };
 
 /// A numeric CSV file read whole: a header line of column names, then rows of
-/// numbers. Bad input (missing file, ragged row, non-number) gives an Error that
+/// finite numbers. Bad input (missing file, ragged row, non-number, NaN/inf) gives an Error that
 /// names the file and line.
 struct CsvData {
   std::vector<std::string> header;
@@ -118,10 +118,8 @@ struct CsvData {
   }
 };
 
-inline CsvData read_csv(const std::filesystem::path& path) {
-  const std::string where = detail::cat("read_csv, ", path.string());
-  std::ifstream in(path);
-  require(static_cast<bool>(in), "cannot open CSV file", where);
+/// The same from a stream; `where` names the source in errors.
+inline CsvData read_csv(std::istream& in, const std::string& where) {
   CsvData d;
   std::string line;
   auto split = [](const std::string& l) {
@@ -149,11 +147,19 @@ inline CsvData read_csv(const std::filesystem::path& path) {
       const double v = std::strtod(c.c_str(), &end);
       require(!c.empty() && end == c.c_str() + c.size(),
               detail::cat("line ", number, ": '", c, "' is not a number"), where);
+      require(std::isfinite(v), detail::cat("line ", number, ": '", c, "' is not finite"), where);
       row.push_back(v);
     }
     d.rows.push_back(std::move(row));
   }
   return d;
+}
+
+inline CsvData read_csv(const std::filesystem::path& path) {
+  const std::string where = detail::cat("read_csv, ", path.string());
+  std::ifstream in(path);
+  require(static_cast<bool>(in), "cannot open CSV file", where);
+  return read_csv(in, where);
 }
 
 }  // namespace maxentflow
