@@ -376,10 +376,10 @@ TEST_CASE("bad input throws maxentflow::Error", "[contact][tool]") {
   using maxentflow::rectangle;
 
   // A query whose squared distance overflows (found by fuzz_rigid_tool).
-  const RigidTool plate("plate", points({V2(0, 0), V2(1, 0)}));
-  CHECK_THROWS_WITH(plate.closest(V2(1e300, -1e300)), Catch::Contains("too far"));
-  CHECK_THROWS_AS(plate.gap(V2(nan, 0)), Error);
-  CHECK(plate.closest(V2(1e150, -1e150)).gap < 0.0);
+  const RigidTool segment("segment", points({V2(0, 0), V2(1, 0)}));
+  CHECK_THROWS_WITH(segment.closest(V2(1e300, -1e300)), Catch::Contains("too far"));
+  CHECK_THROWS_AS(segment.gap(V2(nan, 0)), Error);
+  CHECK(segment.closest(V2(1e150, -1e150)).gap < 0.0);
 
   // Points.
   CHECK_THROWS_AS(RigidTool("one", points({V2(0, 0)})), Error);
