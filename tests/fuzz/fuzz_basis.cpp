@@ -1,7 +1,7 @@
 // libFuzzer target: MaxEntBasis on an arbitrary node cloud (coincident,
 // collinear, non-finite nodes included) evaluated at arbitrary points. Either
 // an Error, or values that are a partition of unity, non-negative, with
-// first-order consistency (sum p_a x_a = x) and gradients that sum to zero.
+// first-order consistency (sum p_a x_a = x) and finite gradients.
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
