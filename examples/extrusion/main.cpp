@@ -24,6 +24,7 @@
 
 #include "common/friction.hpp"
 #include "common/plotting.hpp"
+#include "common/restart.hpp"
 #include "extrusion/extrusion_case.hpp"
 
 namespace fs = std::filesystem;
@@ -128,6 +129,7 @@ struct Options {
   std::string out = "results/extrusion", node_update = "ab2";
   std::vector<int> convergence;
   examples::FrictionOptions friction;
+  examples::RestartOptions restart;
 };
 
 void add_options(CLI::App& app, Setup& s, Options& o) {
@@ -162,6 +164,7 @@ void add_options(CLI::App& app, Setup& s, Options& o) {
   app.add_option("--out-dir", o.out, "Results folder");
   app.add_flag("--no-plots", o.no_plots, "Skip the PNG figures");
   o.friction.add_to(app);
+  o.restart.add_to(app);
   app.add_flag("--verbose", o.verbose, "Log every nonlinear iteration");
   app.add_flag("--check", o.check,
                "Exit 1 unless: no penetration, area change < --area-tol, product width within 5 % of the "
@@ -180,12 +183,25 @@ struct RunMeasures {
 };
 
 // The steps, each recorded; on a failed step the configuration it failed
-// from is kept as failed_step_nodes.csv before the error goes on.
-RunMeasures run(const Setup& s, const Options& o, Stepper<NortonHoff>& sim, const fs::path& dir) {
+// from is kept as failed_step_nodes.csv before the error goes on. With
+// --restart, from the checkpoint in dir; a checkpoint as --checkpoint-every says.
+RunMeasures run(const Setup& s, const Options& o, const std::string& signature, Stepper<NortonHoff>& sim,
+                const fs::path& dir) {
   ResultsWriter results(dir);
   const double area0 = s.axisymmetric ? M_PI * s.height * s.height * s.length : s.length * s.height;
   RunMeasures m;
-  for (int k = 1; k <= o.steps; ++k) {
+  if (o.restart.restarting()) {
+    read_checkpoint(dir, signature, sim, results, [&](CheckpointIn& in) {
+      m.max_area_change = in.get_double();
+      m.min_gap = in.get_double();
+      m.first.xs = in.get_matrix();
+      m.first.p_axis = in.get_matrix();
+      m.first.ys = in.get_matrix();
+      m.first.p_die = in.get_matrix();
+    });
+    std::cout << "restarted from " << checkpoint_file(dir) << " after step " << sim.steps_done() << "\n";
+  }
+  for (int k = sim.steps_done() + 1; k <= o.steps; ++k) {
     try {
       sim.step();
     } catch (const Error&) {
@@ -197,7 +213,8 @@ RunMeasures run(const Setup& s, const Options& o, Stepper<NortonHoff>& sim, cons
       nodes.write(dir / "failed_step_nodes.csv");
       throw;
     }
-    results.record(sim, k == 1 || k == 10 || k == o.steps || k == (o.steps + 1) / 2 || k % o.vtu_every == 0);
+    const bool vtu = k == 1 || k == 10 || k == o.steps || k == (o.steps + 1) / 2 || k % o.vtu_every == 0;
+    results.record(sim, vtu);
     if (k == 1) {
       m.first = profiles(s, sim, 301);
       write_profiles(dir, m.first);
@@ -208,6 +225,10 @@ RunMeasures run(const Setup& s, const Options& o, Stepper<NortonHoff>& sim, cons
     for (int a : sim.mesh().boundary_nodes())
       for (const auto& tool : sim.tools())
         m.min_gap = std::min(m.min_gap, tool.gap(sim.nodes().col(a)) / sim.mesh().h()(a));
+    if (o.restart.due(k, vtu))
+      write_checkpoint(dir, signature, sim, results, [&](CheckpointOut& out) {
+        out.put(m.max_area_change).put(m.min_gap).put(m.first.xs).put(m.first.p_axis).put(m.first.ys).put(m.first.p_die);
+      });
   }
   return m;
 }
@@ -292,6 +313,7 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   s.node_update = o.node_update == "ab2" ? NodeUpdate::adams_bashforth2 : NodeUpdate::euler;
   s.law = o.friction.law(s.V);
+  if (o.restart.restarting()) o.out = o.restart.dir;
   const fs::path dir(o.out);
   try {
     if (!o.convergence.empty()) return convergence(s, o.convergence, dir, o.check);
@@ -304,7 +326,7 @@ int main(int argc, char** argv) {
 
     // 3. March, recording each step (VTU/PVD, forces.csv), the step-1
     //    profiles, the area and the penetration.
-    const RunMeasures m = run(s, o, sim, dir);
+    const RunMeasures m = run(s, o, examples::RestartOptions::signature(app), sim, dir);
 
     // 4. What an engineer checks: the product's width against the die
     //    opening, the step-1 pressure along the axis and the die face.

@@ -26,6 +26,7 @@
 #include <maxentflow/maxentflow.hpp>
 
 #include "common/plotting.hpp"
+#include "common/restart.hpp"
 
 namespace fs = std::filesystem;
 using namespace maxentflow;
@@ -40,6 +41,7 @@ struct Options {
   double homogeneous_tol = 1e-3;
   bool check = false, no_plots = false;
   std::string out = "results/ring_compression";
+  examples::RestartOptions restart;
 };
 
 void add_options(CLI::App& app, Options& o) {
@@ -67,6 +69,7 @@ void add_options(CLI::App& app, Options& o) {
       ->check(CLI::Range(1, 100000));
   app.add_option("--out-dir", o.out, "Results folder (one subfolder per m)");
   app.add_flag("--no-plots", o.no_plots, "Skip the PNG chart");
+  o.restart.add_to(app);
   app.add_flag("--check", o.check,
                "Exit 1 unless m = 0 follows r_i0 sqrt(H0/H) within --homogeneous-tol, the largest m closes the "
                "hole (inner diameter change < 0) and the change at the end falls as m rises");
@@ -91,8 +94,10 @@ struct RingRun {
   double seconds = 0;
 };
 
-// One ring compressed to o.reduction with shear factor m on the plate.
-RingRun compress(const Options& o, double m, const fs::path& dir, CsvTable& table) {
+// One ring compressed to o.reduction with shear factor m on the plate, in
+// dir; with --restart, from dir's checkpoint if it has one (a finished run's
+// last checkpoint gives its figures back without a step).
+RingRun compress(const Options& o, double m, const fs::path& dir, const std::string& signature) {
   const double ri0 = 0.5 * o.inner, ro = 0.5 * o.outer, h0 = 0.5 * o.height;  // half model
   Eigen::Matrix2Xd x(2, o.nr * o.nz);
   for (int j = 0; j < o.nz; ++j)
@@ -116,9 +121,20 @@ RingRun compress(const Options& o, double m, const fs::path& dir, CsvTable& tabl
   RingRun run;
   run.m = m;
   ResultsWriter results(dir);
-  for (int k = 1; k <= o.steps; ++k) {
+  if (o.restart.restarting() && fs::exists(checkpoint_file(dir)))
+    read_checkpoint(dir, signature, sim, results, [&](CheckpointIn& in) {
+      const Eigen::MatrixXd red = in.get_matrix(), id = in.get_matrix();
+      run.reduction.assign(red.data(), red.data() + red.size());
+      run.id_change.assign(id.data(), id.data() + id.size());
+      run.worst_homogeneous = in.get_double();
+      run.seconds = in.get_double();
+    });
+  if (sim.steps_done() > 0)
+    std::cout << "m = " << m << ": restarted from " << checkpoint_file(dir) << " after step " << sim.steps_done() << "\n";
+  for (int k = sim.steps_done() + 1; k <= o.steps; ++k) {
     const StepRecord& r = sim.step();
-    results.record(sim, k == 1 || k == o.steps || k % o.vtu_every == 0);
+    const bool vtu = k == 1 || k == o.steps || k % o.vtu_every == 0;
+    results.record(sim, vtu);
     run.seconds += r.seconds;
     // The configuration at the step's end: the nodes after their move.
     const double h = h0 - o.V * r.time;
@@ -126,8 +142,13 @@ RingRun compress(const Options& o, double m, const fs::path& dir, CsvTable& tabl
     run.reduction.push_back(100 * (1 - h / h0));
     run.id_change.push_back(100 * (ri / ri0 - 1));
     if (m == 0) run.worst_homogeneous = std::max(run.worst_homogeneous, std::abs(ri / (ri0 * std::sqrt(h0 / h)) - 1));
-    table.cell(m).cell(run.reduction.back()).cell(run.id_change.back());
-    table.end_row();
+    if (o.restart.due(k, vtu))
+      write_checkpoint(dir, signature, sim, results, [&](CheckpointOut& out) {
+        out.put(Eigen::Map<const Eigen::VectorXd>(run.reduction.data(), static_cast<Eigen::Index>(run.reduction.size())))
+            .put(Eigen::Map<const Eigen::VectorXd>(run.id_change.data(), static_cast<Eigen::Index>(run.id_change.size())))
+            .put(run.worst_homogeneous)
+            .put(run.seconds);
+      });
   }
   return run;
 }
@@ -178,22 +199,29 @@ int main(int argc, char** argv) {
     std::cerr << "ring_compression: --inner " << o.inner << " must be below --outer " << o.outer << "\n";
     return 2;
   }
+  if (o.restart.restarting()) o.out = o.restart.dir;
   const fs::path dir(o.out);
   try {
     // 2. One compression per m, each in its own folder; the chart's points
     //    in calibration.csv.
-    CsvTable table({"m", "reduction", "inner_diameter_change"});
     std::vector<RingRun> runs;
+    const std::string signature = examples::RestartOptions::signature(app);
     for (double m : o.m) {
       std::ostringstream name;
       name << "m_" << m;
-      runs.push_back(compress(o, m, dir / name.str(), table));
+      runs.push_back(compress(o, m, dir / name.str(), signature));
       const RingRun& r = runs.back();
       std::cout << "m = " << m << ": inner diameter change " << r.id_change.back() << " % at "
                 << r.reduction.back() << " % reduction (" << r.seconds << " s)";
       if (m == 0) std::cout << "; off the homogeneous solution by " << r.worst_homogeneous;
       std::cout << "\n";
     }
+    CsvTable table({"m", "reduction", "inner_diameter_change"});
+    for (const RingRun& r : runs)
+      for (std::size_t k = 0; k < r.reduction.size(); ++k) {
+        table.cell(r.m).cell(r.reduction[k]).cell(r.id_change[k]);
+        table.end_row();
+      }
     table.write(dir / "calibration.csv");
     std::cout << "inner diameter stops growing at m = " << neutral_m(runs) << " (at " << 100 * o.reduction
               << " % reduction)\nresults in " << dir << " (calibration.csv, m_*/step.pvd)\n";

@@ -19,6 +19,7 @@
 
 #include "common/friction.hpp"
 #include "common/plotting.hpp"
+#include "common/restart.hpp"
 
 namespace fs = std::filesystem;
 using namespace maxentflow;
@@ -33,6 +34,7 @@ struct Options {
   double alpha = 1.3, check = -1;
   std::string out = "results/upsetting", node_update = "ab2";
   examples::FrictionOptions friction;
+  examples::RestartOptions restart;
 };
 
 // The largest radius of the nodes in contact with the top plate (tool 1).
@@ -85,6 +87,7 @@ void add_options(CLI::App& app, Options& o) {
   app.add_flag("--no-plots", o.no_plots, "Skip the PNG figures");
   app.add_flag("--verbose", o.verbose, "Log every nonlinear iteration");
   o.friction.add_to(app);
+  o.restart.add_to(app);
   app.add_option("--check", o.check, "Fail (exit 1) if the plate force misses the exact one by more than this");
 }
 
@@ -105,6 +108,7 @@ int main(int argc, char** argv) {
   add_options(app, o);
   CLI11_PARSE(app, argc, argv);
   const bool axi = !o.plane_strain;
+  if (o.restart.restarting()) o.out = o.restart.dir;
   const fs::path dir(o.out);
   if (o.check >= 0 && !o.friction.frictionless()) {
     std::cerr << "upsetting: --check compares with the exact frictionless solution; it does not apply with "
@@ -152,9 +156,20 @@ int main(int argc, char** argv) {
                     "force_continuum"});
     double worst = 0, worst_path = 0, worst_volume = 0, ratio_first = 0, ratio_last = 0, bulge = 0, barrel = 0;
     const double volume0 = axi ? M_PI * o.radius * o.radius * o.height : o.radius * o.height;
-    for (int k = 1; k <= o.steps; ++k) {
+    // What the loop accumulates travels in the checkpoint with the stepper.
+    double* const running[] = {&worst, &worst_path, &worst_volume, &ratio_first, &ratio_last, &bulge, &barrel};
+    const std::string signature = examples::RestartOptions::signature(app);
+    if (o.restart.restarting()) {
+      read_checkpoint(dir, signature, sim, results, [&](CheckpointIn& in) {
+        for (double* v : running) *v = in.get_double();
+        exact.load(in);
+      });
+      std::cout << "restarted from " << checkpoint_file(dir) << " after step " << sim.steps_done() << "\n";
+    }
+    for (int k = sim.steps_done() + 1; k <= o.steps; ++k) {
       const auto& r = sim.step();
-      results.record(sim, k == 1 || k == o.steps || k == (o.steps + 1) / 2 || k % o.vtu_every == 0);
+      const bool vtu = k == 1 || k == o.steps || k == (o.steps + 1) / 2 || k % o.vtu_every == 0;
+      results.record(sim, vtu);
       const auto& xs = sim.nodes_solved();
       const double H = xs.row(1).maxCoeff() - xs.row(1).minCoeff(), R = xs.row(0).maxCoeff();
       const double F = exact_force(material, axi, o.V, H, R);
@@ -171,6 +186,11 @@ int main(int argc, char** argv) {
       bulge = R - top_contact_radius(sim);
       exact.cell(k).cell(r.time - r.dt).cell(r.tool_stroke[1]).cell(H).cell(R).cell(Fh).cell(F).cell(err).cell(Fc);
       exact.end_row();
+      if (o.restart.due(k, vtu))
+        write_checkpoint(dir, signature, sim, results, [&](CheckpointOut& out) {
+          for (const double* v : running) out.put(*v);
+          exact.save(out);
+        });
     }
     exact.write(dir / "exact.csv");
 

@@ -8,6 +8,7 @@
 #include <maxentflow/basis/basis_table.hpp>
 #include <maxentflow/basis/maxent_basis.hpp>
 #include <maxentflow/io/atomic_file.hpp>
+#include <maxentflow/io/checkpoint.hpp>
 #include <maxentflow/io/mesh_vtu.hpp>
 #include <maxentflow/io/vtk.hpp>
 #include <maxentflow/mesh/integration_mesh.hpp>
@@ -31,3 +32,4 @@
 #include <maxentflow/stepper/nodal_fields.hpp>
 #include <maxentflow/stepper/stepper.hpp>
 #include <maxentflow/stepper/results_writer.hpp>
+#include <maxentflow/stepper/checkpoint.hpp>

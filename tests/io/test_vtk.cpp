@@ -1,10 +1,12 @@
 // Atomic file writes and the VTU / PVD writers.
 #include <catch2/catch.hpp>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -12,6 +14,7 @@
 #include <unistd.h>
 
 #include <maxentflow/io/atomic_file.hpp>
+#include <maxentflow/io/checkpoint.hpp>
 #include <maxentflow/io/csv.hpp>
 #include <maxentflow/io/vtk.hpp>
 
@@ -248,4 +251,63 @@ TEST_CASE("read_csv: numbers under a header; ragged, non-numeric and non-finite 
   CHECK_THROWS_AS(read("x,y\n1,\n"), Error);
   for (const char* bad : {"nan", "inf", "-inf", "1e400"})
     CHECK_THROWS_WITH(read(std::string("x\n") + bad + "\n"), Catch::Contains("not finite"));
+}
+
+TEST_CASE("checkpoint archive: values come back in order; another format, damage, truncation refused", "[io][checkpoint]") {
+  using namespace maxentflow;
+  Eigen::MatrixXd m(2, 3);
+  m << 1, 2, 3, 4, 5, std::nextafter(6.0, 7.0);
+  CheckpointOut out;
+  out.put(0.1).put(-7).put(true).put("a name, with spaces").put(m).put(std::vector<int>{3, -1, 0});
+  out.put(std::map<std::string, double>{{"worst", 1e-300}}).put(std::map<std::string, std::string>{{"a", ""}});
+  const std::string bytes = out.bytes();
+  {
+    CheckpointIn in(bytes, "memory");
+    CHECK(in.get_double() == 0.1);
+    CHECK(in.get_int() == -7);
+    CHECK(in.get_bool());
+    CHECK(in.get_string() == "a name, with spaces");
+    CHECK(in.get_matrix() == m);  // bitwise
+    CHECK(in.get_ints() == std::vector<int>{3, -1, 0});
+    CHECK(in.get_numbers().at("worst") == 1e-300);
+    CHECK(in.get_texts().at("a").empty());
+    in.expect_end();
+  }
+  SECTION("a reader expecting other values") {
+    CheckpointIn in(bytes, "memory");
+    CHECK_THROWS_WITH(in.get_int(), Catch::Contains("expected an integer") && Catch::Contains("memory"));
+    CheckpointIn partly(bytes, "memory");
+    partly.get_double();
+    CHECK_THROWS_WITH(partly.expect_end(), Catch::Contains("bytes left unread"));
+  }
+  SECTION("damage, truncation, another format, not a checkpoint") {
+    std::string damaged = bytes;
+    damaged[CheckpointFormat::header + 5] ^= 0x20;
+    CHECK_THROWS_WITH(CheckpointIn(damaged, "x"), Catch::Contains("checksum mismatch"));
+    CHECK_THROWS_WITH(CheckpointIn(bytes.substr(0, bytes.size() - 1), "x"), Catch::Contains("truncated"));
+    std::string other = bytes;
+    other[16] = 99;  // the format version
+    CHECK_THROWS_WITH(CheckpointIn(other, "x"), Catch::Contains("format version 99"));
+    CHECK_THROWS_WITH(CheckpointIn("step,time\n1,0\n", "x"), Catch::Contains("not a maxentflow checkpoint"));
+    CHECK_THROWS_WITH(CheckpointIn(std::filesystem::path("/nonexistent/checkpoint.mxf")), Catch::Contains("cannot open"));
+  }
+  SECTION("a CSV table and a PVD series go on where they were") {
+    CsvTable t({"step", "f"}), u({"step", "f"}), v({"other"});
+    t.row({1, 2.5});
+    PvdCollection p("a.pvd"), q("a.pvd");
+    p.add(0.5, "s_0001.vtu");
+    CheckpointOut o;
+    t.save(o);
+    p.save(o);
+    t.save(o);
+    CheckpointIn in(o.bytes(), "memory");
+    u.load(in);
+    q.load(in);
+    CHECK_THROWS_WITH(v.load(in), Catch::Contains("another header"));
+    u.row({2, 3.0});
+    t.row({2, 3.0});
+    CHECK(u.str() == t.str());
+    CHECK(u.rows() == 2);
+    CHECK(q.str() == p.str());
+  }
 }

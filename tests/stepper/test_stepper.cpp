@@ -1033,3 +1033,66 @@ TEST_CASE("node update: Adams-Bashforth 2 follows the continuum path to second o
   CHECK(std::log2(eu_force2 / eu_force) == Approx(1.0).margin(0.2));
   CHECK(std::log2(ab_volume2 / ab_volume) > 1.8);
 }
+
+TEST_CASE("checkpoint: a stepper loaded from a saved state goes on bitwise as the one that saved it; a "
+          "checkpoint that does not fit is refused and changes nothing",
+          "[stepper][checkpoint]") {
+  // Plane-strain compression with rezoning (nodes come and go) and a user field.
+  const double R0 = 10, H0 = 12, V = 1;  // 7 steps to 42 % of the height
+  StepperParams prm;
+  prm.geometry = Geometry::plane_strain;
+  prm.dt = 1;
+  prm.adapt.enabled = true;
+  prm.adapt.min_ratio = 0.7;
+  prm.adapt.max_ratio = 1.6;
+  auto make = [&](const std::string& top_name = "top") {
+    auto s = std::make_unique<Stepper<NortonHoff>>(block_nodes(7, 8, R0, H0, false), NortonHoff(150.0, 0.2, 1e-8), prm);
+    s->add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
+    RigidTool top = flat_plate(top_name, {0, H0}, {0, -1}, 100);
+    top.set_velocity({0, -V});
+    s->add_tool(top);
+    s->add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+    s->add_nodal_field("x0", 1);
+    s->nodal_field("x0") = s->nodes().row(0);
+    return s;
+  };
+  auto a = make();
+  for (int k = 0; k < 3; ++k) a->step();
+  CheckpointOut out;
+  a->save(out);
+  const std::string bytes = out.bytes();
+  for (int k = 0; k < 4; ++k) a->step();
+
+  auto b = make();
+  CheckpointIn in(bytes, "memory");
+  b->load(in);
+  in.expect_end();
+  CHECK(b->steps_done() == 3);
+  CHECK(b->history().size() == 3);
+  CHECK_THROWS_WITH(b->mesh(), Catch::Contains("no step solved yet"));
+  for (int k = 0; k < 4; ++k) b->step();
+  CHECK(b->steps_done() == a->steps_done());
+  CHECK(b->time() == a->time());
+  REQUIRE(b->nodes().cols() == a->nodes().cols());
+  CHECK(b->nodes() == a->nodes());  // bitwise
+  CHECK(b->nodal_field("x0") == a->nodal_field("x0"));
+  CHECK(b->effective_strain() == a->effective_strain());
+  CHECK(b->tools()[1].displacement() == a->tools()[1].displacement());
+  CHECK(b->history().back().tool_force[1] == a->history().back().tool_force[1]);
+  CHECK(std::any_of(a->history().begin(), a->history().end(),
+                    [](const StepRecord& r) { return r.nodes_added + r.nodes_removed > 0; }));
+
+  SECTION("another set of tools or fields is refused, the stepper unchanged") {
+    auto c = make("punch");
+    const Eigen::Matrix2Xd x0 = c->nodes();
+    CheckpointIn in2(bytes, "memory");
+    CHECK_THROWS_WITH(c->load(in2), Catch::Contains("tool 'top' where this run has 'punch'"));
+    CHECK(c->nodes() == x0);
+    CHECK(c->steps_done() == 0);
+    auto d = make();
+    d->add_nodal_field("temperature", 1);
+    CheckpointIn in3(bytes, "memory");
+    CHECK_THROWS_WITH(d->load(in3), Catch::Contains("nodal fields, this run registers"));
+    CHECK(d->steps_done() == 0);
+  }
+}

@@ -19,6 +19,7 @@
 #include <maxentflow/core/error.hpp>
 #include <maxentflow/flow/constraints.hpp>
 #include <maxentflow/flow/flow_discretization.hpp>
+#include <maxentflow/io/checkpoint.hpp>
 
 namespace maxentflow {
 
@@ -253,6 +254,33 @@ class ContactSet {
       if (b >= 0) moved[DofLayout::with_node(k, b)] = l;
     }
     lambda_.swap(moved);
+  }
+
+  /// The state a step carries to the next, for a checkpoint: each tool's
+  /// displacement and velocity, the multipliers' warm start. load() needs the
+  /// same tools (names, order) added, as the run that wrote it had.
+  void save(CheckpointOut& out) const {
+    out.put(static_cast<std::int64_t>(tools_.size()));
+    for (const auto& t : tools_) out.put(t.name()).put(t.displacement()).put(t.velocity());
+    out.put(static_cast<std::int64_t>(lambda_.size()));
+    for (const auto& [k, l] : lambda_) out.put(static_cast<std::int64_t>(k)).put(l);
+  }
+  void load(CheckpointIn& in) {
+    const auto n = static_cast<std::size_t>(in.get_count());
+    if (n != tools_.size()) in.fail(detail::cat(n, " tools, this run has ", tools_.size()));
+    for (auto& t : tools_) {
+      const std::string name = in.get_string();
+      const Eigen::MatrixXd d = in.get_matrix(), v = in.get_matrix();
+      if (name != t.name() || d.size() != 2 || v.size() != 2)
+        in.fail(detail::cat("tool '", name, "' where this run has '", t.name(), "'"));
+      t.translate(Eigen::Vector2d(d(0), d(1)) - t.displacement());
+      t.set_velocity(Eigen::Vector2d(v(0), v(1)));
+    }
+    lambda_.clear();
+    for (auto m = in.get_count(); m > 0; --m) {
+      const auto key = static_cast<std::uint64_t>(in.get_int());
+      lambda_[key] = in.get_double();
+    }
   }
 
   /// "in contact", "free" or "not on the boundary" (node a on tool k, this configuration).

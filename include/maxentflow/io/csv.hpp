@@ -4,6 +4,7 @@
 
 #include <maxentflow/core/error.hpp>
 #include <maxentflow/io/atomic_file.hpp>
+#include <maxentflow/io/checkpoint.hpp>
 
 #include <charconv>
 #include <cmath>
@@ -77,6 +78,21 @@ class CsvTable {
 
   std::size_t rows() const { return rows_; }
   const std::string& str() const { return text_; }
+  /// The rows so far, for a checkpoint; load() refuses a table of another header.
+  void save(CheckpointOut& out) const {
+    MAXENTFLOW_REQUIRE(in_row_ == 0, "a CSV table is saved between rows", "CsvTable::save");
+    out.put(text_).put(static_cast<std::int64_t>(rows_));
+  }
+  void load(CheckpointIn& in) {
+    std::string text = in.get_string();
+    const auto rows = static_cast<std::size_t>(in.get_count());
+    const std::string header = text_.substr(0, text_.find('\n') + 1);
+    if (text.compare(0, header.size(), header) != 0)
+      in.fail(detail::cat("a CSV table with another header than ", header.substr(0, header.size() - 1)));
+    text_ = std::move(text);
+    rows_ = rows;
+    in_row_ = 0;
+  }
   void write(const std::filesystem::path& path) const {
     require(in_row_ == 0, "CSV table written with an unfinished row", "CsvTable::write");
     write_file_atomic(path, text_);

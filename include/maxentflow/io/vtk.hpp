@@ -18,6 +18,7 @@
 
 #include <maxentflow/core/error.hpp>
 #include <maxentflow/io/atomic_file.hpp>
+#include <maxentflow/io/checkpoint.hpp>
 
 namespace maxentflow {
 
@@ -315,6 +316,19 @@ class PvdCollection {
 
   /// Writes the collection atomically (rewrite after each add for a live series).
   void write() const { write_file_atomic(path_, str()); }
+
+  /// The entries so far, for a checkpoint.
+  void save(CheckpointOut& out) const {
+    out.put(static_cast<std::int64_t>(steps_.size()));
+    for (const auto& s : steps_) out.put(s.time).put(s.file);
+  }
+  void load(CheckpointIn& in) {
+    steps_.clear();
+    for (auto n = in.get_count(); n > 0; --n) {
+      const double t = in.get_double();
+      steps_.push_back({t, in.get_string()});
+    }
+  }
 
  private:
   struct Step {

@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 
 #include <maxentflow/core/error.hpp>
+#include <maxentflow/io/checkpoint.hpp>
 #include <maxentflow/stepper/node_adaptivity.hpp>
 
 namespace maxentflow {
@@ -74,6 +75,30 @@ class NodalFields {
 
   const std::vector<Field>& fields() const { return fields_; }
   Eigen::Index nodes() const { return nodes_; }
+
+  /// Every field's values, for a checkpoint. load() needs the same fields
+  /// registered (same names, components, order), as the run that wrote it had.
+  void save(CheckpointOut& out) const {
+    out.put(static_cast<std::int64_t>(nodes_)).put(static_cast<std::int64_t>(fields_.size()));
+    for (const auto& f : fields_) out.put(f.name).put(f.values);
+  }
+  void load(CheckpointIn& in) {
+    const auto nodes = static_cast<Eigen::Index>(in.get_count());
+    const auto n = static_cast<std::size_t>(in.get_count());
+    if (n != fields_.size())
+      in.fail(detail::cat(n, " nodal fields, this run registers ", fields_.size()));
+    std::vector<Eigen::MatrixXd> values;
+    for (const auto& f : fields_) {
+      const std::string name = in.get_string();
+      Eigen::MatrixXd v = in.get_matrix();
+      if (name != f.name || v.rows() != f.values.rows() || v.cols() != nodes)
+        in.fail(detail::cat("nodal field '", name, "' (", v.rows(), " x ", v.cols(), ") where this run has '", f.name,
+                            "' with ", f.values.rows(), " components for ", nodes, " nodes"));
+      values.push_back(std::move(v));
+    }
+    for (std::size_t k = 0; k < n; ++k) fields_[k].values = std::move(values[k]);
+    nodes_ = nodes;
+  }
 
   /// Carries every field to the cloud after a rezoning.
   void transfer(const NodeAdaptation& a) {

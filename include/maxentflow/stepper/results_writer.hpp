@@ -79,6 +79,19 @@ class ResultsWriter {
     tools_.write(dir_ / "tools.csv");
   }
 
+  /// What the writer has recorded so far (PVD entries, CSV rows), for a
+  /// checkpoint: a restarted run appends to the same series.
+  void save(CheckpointOut& out) const {
+    pvd_.save(out);
+    forces_.save(out);
+    tools_.save(out);
+  }
+  void load(CheckpointIn& in) {
+    pvd_.load(in);
+    forces_.load(in);
+    tools_.load(in);
+  }
+
  private:
   std::filesystem::path dir_;
   std::string prefix_;

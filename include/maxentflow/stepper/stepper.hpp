@@ -25,6 +25,7 @@
 #include <maxentflow/flow/constraints.hpp>
 #include <maxentflow/flow/flow_discretization.hpp>
 #include <maxentflow/flow/flow_system.hpp>
+#include <maxentflow/io/checkpoint.hpp>
 #include <maxentflow/material/norton_hoff.hpp>
 #include <maxentflow/mesh/integration_mesh.hpp>
 #include <maxentflow/solver/nonlinear_solver.hpp>
@@ -229,7 +230,10 @@ class Stepper {
   // Fields of the last solved configuration (the one at the start of the last
   // step; `nodes_solved()` are its positions).
   const Eigen::Matrix2Xd& nodes_solved() const { return x_solved_; }
-  const Mesh& mesh() const { return *mesh_; }
+  const Mesh& mesh() const {
+    require(mesh_ != nullptr, "no step solved yet (or none since a restart)", "Stepper::mesh");
+    return *mesh_;
+  }
   const Eigen::MatrixXd& velocity() const { return fields_[k_.velocity]; }  ///< 2 x N
   Eigen::Map<const Eigen::VectorXd> pressure() const { return fields_.flat(k_.pressure); }
   Eigen::Map<const Eigen::VectorXd> strain_rate() const { return fields_.flat(k_.strain_rate); }
@@ -295,12 +299,67 @@ class Stepper {
     rec.time = time_;
     rec.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     history_.push_back(rec);
-    if (log_) print(*log_, rec);
+    if (log_) print(*log_, rec) << std::flush;  // a progress line is seen as the step ends, also in a file
     return history_.back();
   }
 
+  /// The run's state at the end of the last step, for a restart: nodes, every
+  /// nodal field (coefficients, effective strain, h0, ...), the tools'
+  /// positions and velocities, the multipliers' warm start, time, step, dt
+  /// and the step history. It also drops the solver's carried factorizations
+  /// (they only precondition, but they steer the iterates): the run that goes
+  /// on and one restarted from this state then take the same path, bitwise.
+  void save(CheckpointOut& out) {
+    out.put("Stepper").put(step_).put(time_).put(prm_.dt).put(dt_last_).put(ab_ratio_).put(h0_set_);
+    out.put(x_).put(contact_flag_);
+    fields_.save(out);
+    contact_.save(out);
+    out.put(static_cast<std::int64_t>(history_.size()));
+    for (const auto& r : history_) save_record(out, r);
+    solver_.reset();
+  }
+  /// Restores what save() wrote into a stepper set up as the run that wrote
+  /// it (same tools, conditions and nodal fields); the next step() goes on
+  /// from there. Throws Error (and changes nothing) on a checkpoint that does
+  /// not fit.
+  void load(CheckpointIn& in) {
+    if (in.get_string() != "Stepper") in.fail("no stepper state here");
+    // Read whole before anything changes: a failure leaves the stepper as it was.
+    const int step = static_cast<int>(in.get_count());
+    const double time = in.get_double(), dt = in.get_double(), dt_last = in.get_double(), ab_ratio = in.get_double();
+    const bool h0_set = in.get_bool();
+    const Eigen::MatrixXd x = in.get_matrix();
+    if (x.rows() != 2 || x.cols() < 3 || !x.allFinite()) in.fail("node positions are not a finite 2 x N cloud");
+    std::vector<int> flag = in.get_ints();
+    NodalFields fields = fields_;
+    fields.load(in);
+    if (fields.nodes() != x.cols() || flag.size() != static_cast<std::size_t>(x.cols()))
+      in.fail("nodal fields and nodes disagree in number");
+    ContactSet contact = contact_;
+    contact.load(in);
+    std::vector<StepRecord> history;
+    for (auto n = in.get_count(); n > 0; --n) history.push_back(load_record(in));
+    StepperParams prm = prm_;
+    prm.dt = dt;
+    prm.validate("Stepper::load");
+    prm_ = prm;
+    step_ = step;
+    time_ = time;
+    dt_last_ = dt_last;
+    ab_ratio_ = ab_ratio;
+    h0_set_ = h0_set;
+    x_ = x;
+    contact_flag_ = std::move(flag);
+    fields_ = std::move(fields);
+    contact_ = std::move(contact);
+    history_ = std::move(history);
+    solver_.reset();
+    mesh_.reset();
+    basis_.reset();
+  }
+
   /// One progress line: step, time, strokes, iterations, contact, forces, wall time.
-  static void print(std::ostream& os, const StepRecord& r) {
+  static std::ostream& print(std::ostream& os, const StepRecord& r) {
     char buf[256];
     std::snprintf(buf, sizeof buf,
                   "step %4d  t %-9.4g dt %-8.3g picard %2d newton %2d krylov %4d  as %d  contact %3d",
@@ -317,7 +376,7 @@ class Stepper {
       os << buf;
     }
     std::snprintf(buf, sizeof buf, "  %.3f s%s\n", r.seconds, r.substeps > 1 ? "  (retried)" : "");
-    os << buf;
+    return os << buf;
   }
 
  private:
@@ -343,6 +402,42 @@ class Stepper {
     h0_set_ = s.h0_set;
     time_ = s.time;
     contact_.restore(s.tool_disp);
+  }
+
+  static void save_record(CheckpointOut& out, const StepRecord& r) {
+    out.put(r.step).put(r.time).put(r.dt).put(r.substeps).put(r.picard).put(r.newton).put(r.active_set_iterations);
+    out.put(r.linear_iterations).put(r.max_linear_iterations).put(r.preconditioner_updates).put(r.direct_fallbacks);
+    out.put(r.contact_nodes).put(r.nodes).put(r.nodes_added).put(r.nodes_removed);
+    Eigen::Matrix2Xd f(2, static_cast<Eigen::Index>(r.tool_force.size()));
+    for (std::size_t k = 0; k < r.tool_force.size(); ++k) f.col(static_cast<Eigen::Index>(k)) = r.tool_force[k];
+    out.put(f).put(Eigen::Map<const Eigen::VectorXd>(r.tool_stroke.data(), static_cast<Eigen::Index>(r.tool_stroke.size())));
+    out.put(r.seconds).put(r.mesh_seconds).put(r.basis_seconds).put(r.solve_seconds).put(r.post_seconds);
+    out.put(r.assembly_seconds).put(r.factorization_seconds).put(r.linear_seconds);
+    out.put(r.note).put(r.predictor_fallbacks).put(r.nodal_gradient_fallback).put(r.degraded);
+  }
+  static StepRecord load_record(CheckpointIn& in) {
+    StepRecord r;
+    auto i = [&] { return static_cast<int>(in.get_int()); };
+    r.step = i();
+    r.time = in.get_double();
+    r.dt = in.get_double();
+    r.substeps = i(), r.picard = i(), r.newton = i(), r.active_set_iterations = i();
+    r.linear_iterations = i(), r.max_linear_iterations = i(), r.preconditioner_updates = i(), r.direct_fallbacks = i();
+    r.contact_nodes = i(), r.nodes = i(), r.nodes_added = i(), r.nodes_removed = i();
+    const Eigen::MatrixXd f = in.get_matrix(), stroke = in.get_matrix();
+    if (f.rows() != 2 || stroke.size() != f.cols()) in.fail("a step record's tool forces and strokes disagree");
+    for (Eigen::Index k = 0; k < f.cols(); ++k) {
+      r.tool_force.emplace_back(f(0, k), f(1, k));
+      r.tool_stroke.push_back(stroke(k));
+    }
+    for (double* d : {&r.seconds, &r.mesh_seconds, &r.basis_seconds, &r.solve_seconds, &r.post_seconds,
+                      &r.assembly_seconds, &r.factorization_seconds, &r.linear_seconds})
+      *d = in.get_double();
+    r.note = in.get_string();
+    r.predictor_fallbacks = i();
+    r.nodal_gradient_fallback = in.get_bool();
+    r.degraded = in.get_string();
+    return r;
   }
 
   using clock = std::chrono::steady_clock;

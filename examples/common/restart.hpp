@@ -1,0 +1,54 @@
+// Examples: the checkpoint and restart options every forming example takes
+// (--checkpoint-every, --restart), and the case signature a restart must match.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <set>
+#include <sstream>
+#include <string>
+
+#include <maxentflow/maxentflow.hpp>
+
+namespace maxentflow::examples {
+
+struct RestartOptions {
+  int every = 0;    ///< checkpoint every this many steps; 0: at each VTU step
+  std::string dir;  ///< --restart: the results folder of the run to resume
+
+  void add_to(CLI::App& app) {
+    app.add_option("--checkpoint-every", every,
+                   "Write the run's checkpoint (results folder, checkpoint.mxf) every this many steps; "
+                   "0: at each VTU step")
+        ->check(CLI::Range(0, 100000));
+    app.add_option("--restart", dir,
+                   "Resume the run whose results are in this folder from its last checkpoint, with the same "
+                   "options; its results are appended to (the folder replaces --out-dir)")
+        ->check(CLI::ExistingDirectory);
+  }
+  bool restarting() const { return !dir.empty(); }
+  /// Whether step k (1-based) ends with a checkpoint.
+  bool due(int k, bool vtu) const { return every > 0 ? k % every == 0 : vtu; }
+
+  /// The options that define the case, one "name=value" per line (every
+  /// option of `app` with its value, defaults included, except those that
+  /// only say where and how the results are shown): what a checkpoint is
+  /// stamped with and a restart must match.
+  static std::string signature(const CLI::App& app) {
+    static const std::set<std::string> ignored = {"out-dir", "restart", "checkpoint-every", "no-plots",
+                                                  "verbose", "check", "area-tol"};
+    std::istringstream all(app.config_to_str(true, false));
+    std::string line, sig;
+    while (std::getline(all, line)) {
+      const auto eq = line.find('=');
+      if (eq == std::string::npos) continue;
+      std::string key = line.substr(0, eq);
+      while (!key.empty() && key.back() == ' ') key.pop_back();
+      if (ignored.count(key)) continue;
+      sig += line + "\n";
+    }
+    return sig;
+  }
+};
+
+}  // namespace maxentflow::examples
