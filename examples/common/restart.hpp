@@ -21,10 +21,12 @@ struct RestartOptions {
                    "Write the run's checkpoint (results folder, checkpoint.mxf) every this many steps; "
                    "0: at each VTU step")
         ->check(CLI::Range(0, 100000));
-    app.add_option("--restart", dir,
-                   "Resume the run whose results are in this folder from its last checkpoint, with the same "
-                   "options; its results are appended to (the folder replaces --out-dir)")
-        ->check(CLI::ExistingDirectory);
+    auto* restart = app.add_option("--restart", dir,
+                                   "Resume the run whose results are in this folder from its last checkpoint, with "
+                                   "the same options; its results are appended to (the folder replaces --out-dir)")
+                        ->check(CLI::ExistingDirectory);
+    // The restarted run's results go where the first run's are: one folder.
+    if (auto* out = app.get_option_no_throw("--out-dir")) restart->excludes(out);
   }
   bool restarting() const { return !dir.empty(); }
   /// Whether step k (1-based) ends with a checkpoint.

@@ -314,6 +314,15 @@ int main(int argc, char** argv) {
   s.node_update = o.node_update == "ab2" ? NodeUpdate::adams_bashforth2 : NodeUpdate::euler;
   s.law = o.friction.law(s.V);
   if (o.restart.restarting()) o.out = o.restart.dir;
+  if (o.convergence.empty() && !(o.steps * s.dt * s.V < s.length)) {
+    std::cerr << "extrusion: the ram's stroke --steps x --dt x --velocity = " << o.steps * s.dt * s.V
+              << " reaches the die face (--length " << s.length << ")\n";
+    return 2;
+  }
+  if (!o.convergence.empty() && o.restart.restarting()) {
+    std::cerr << "extrusion: --convergence solves step 1 only; there is nothing to --restart\n";
+    return 2;
+  }
   const fs::path dir(o.out);
   try {
     if (!o.convergence.empty()) return convergence(s, o.convergence, dir, o.check);

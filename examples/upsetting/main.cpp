@@ -109,6 +109,11 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
   const bool axi = !o.plane_strain;
   if (o.restart.restarting()) o.out = o.restart.dir;
+  if (!(o.steps * o.dt * o.V < o.height)) {
+    std::cerr << "upsetting: the stroke --steps x --dt x --velocity = " << o.steps * o.dt * o.V
+              << " would close the gap between the plates (--height " << o.height << ")\n";
+    return 2;
+  }
   const fs::path dir(o.out);
   if (o.check >= 0 && !o.friction.frictionless()) {
     std::cerr << "upsetting: --check compares with the exact frictionless solution; it does not apply with "
