@@ -199,6 +199,10 @@ RunMeasures run(const Setup& s, const Options& o, const std::string& signature, 
       m.first.ys = in.get_matrix();
       m.first.p_die = in.get_matrix();
     });
+    if (sim.steps_done() >= o.steps)
+      throw Error(detail::cat("the run in ", dir.string(), " has done its ", sim.steps_done(),
+                              " steps; nothing to restart"),
+                  "extrusion --restart");
     std::cout << "restarted from " << checkpoint_file(dir) << " after step " << sim.steps_done() << "\n";
   }
   for (int k = sim.steps_done() + 1; k <= o.steps; ++k) {

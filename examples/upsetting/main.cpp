@@ -169,6 +169,10 @@ int main(int argc, char** argv) {
         for (double* v : running) *v = in.get_double();
         exact.load(in);
       });
+      if (sim.steps_done() >= o.steps)
+        throw Error(detail::cat("the run in ", dir.string(), " has done its ", sim.steps_done(),
+                                " steps; nothing to restart"),
+                    "upsetting --restart");
       std::cout << "restarted from " << checkpoint_file(dir) << " after step " << sim.steps_done() << "\n";
     }
     for (int k = sim.steps_done() + 1; k <= o.steps; ++k) {
