@@ -4,9 +4,12 @@
 
 #include <CLI/CLI.hpp>
 
+#include <filesystem>
+#include <iostream>
 #include <set>
 #include <sstream>
 #include <string>
+#include <utility>
 
 #include <maxentflow/maxentflow.hpp>
 
@@ -31,6 +34,20 @@ struct RestartOptions {
   bool restarting() const { return !dir.empty(); }
   /// Whether step k (1-based) ends with a checkpoint.
   bool due(int k, bool vtu) const { return every > 0 ? k % every == 0 : vtu; }
+
+  /// --restart: the run in `dir` back from its checkpoint (read_checkpoint,
+  /// `extra` reads the example's own figures) with a line saying from where;
+  /// a run that has done all its `steps` is an Error (`who`: the example).
+  template <class Sim, class Extra>
+  static void resume(const std::filesystem::path& dir, const std::string& signature, Sim& sim,
+                     ResultsWriter& writer, int steps, const char* who, Extra&& extra) {
+    read_checkpoint(dir, signature, sim, writer, std::forward<Extra>(extra));
+    if (sim.steps_done() >= steps)
+      throw Error(detail::cat("the run in ", dir.string(), " has done its ", sim.steps_done(),
+                              " steps; nothing to restart"),
+                  detail::cat(who, " --restart"));
+    std::cout << "restarted from " << checkpoint_file(dir) << " after step " << sim.steps_done() << "\n";
+  }
 
   /// The options that define the case, one "name=value" per line (every
   /// option of `app` with its value, defaults included, except those that

@@ -191,7 +191,7 @@ RunMeasures run(const Setup& s, const Options& o, const std::string& signature, 
   const double area0 = s.axisymmetric ? M_PI * s.height * s.height * s.length : s.length * s.height;
   RunMeasures m;
   if (o.restart.restarting()) {
-    read_checkpoint(dir, signature, sim, results, [&](CheckpointIn& in) {
+    examples::RestartOptions::resume(dir, signature, sim, results, o.steps, "extrusion", [&](CheckpointIn& in) {
       m.max_area_change = in.get_double();
       m.min_gap = in.get_double();
       m.first.xs = in.get_matrix();
@@ -199,11 +199,6 @@ RunMeasures run(const Setup& s, const Options& o, const std::string& signature, 
       m.first.ys = in.get_matrix();
       m.first.p_die = in.get_matrix();
     });
-    if (sim.steps_done() >= o.steps)
-      throw Error(detail::cat("the run in ", dir.string(), " has done its ", sim.steps_done(),
-                              " steps; nothing to restart"),
-                  "extrusion --restart");
-    std::cout << "restarted from " << checkpoint_file(dir) << " after step " << sim.steps_done() << "\n";
   }
   for (int k = sim.steps_done() + 1; k <= o.steps; ++k) {
     try {

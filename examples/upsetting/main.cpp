@@ -165,15 +165,10 @@ int main(int argc, char** argv) {
     double* const running[] = {&worst, &worst_path, &worst_volume, &ratio_first, &ratio_last, &bulge, &barrel};
     const std::string signature = examples::RestartOptions::signature(app);
     if (o.restart.restarting()) {
-      read_checkpoint(dir, signature, sim, results, [&](CheckpointIn& in) {
+      examples::RestartOptions::resume(dir, signature, sim, results, o.steps, "upsetting", [&](CheckpointIn& in) {
         for (double* v : running) *v = in.get_double();
         exact.load(in);
       });
-      if (sim.steps_done() >= o.steps)
-        throw Error(detail::cat("the run in ", dir.string(), " has done its ", sim.steps_done(),
-                                " steps; nothing to restart"),
-                    "upsetting --restart");
-      std::cout << "restarted from " << checkpoint_file(dir) << " after step " << sim.steps_done() << "\n";
     }
     for (int k = sim.steps_done() + 1; k <= o.steps; ++k) {
       const auto& r = sim.step();
