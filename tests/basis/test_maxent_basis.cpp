@@ -86,6 +86,45 @@ TEST_CASE("3-D basis: interior consistency; faces, edges and corners restrict", 
     CHECK(corner.p[j] == (corner.node[j] == corner_node ? 1.0 : 0.0));
 }
 
+TEST_CASE("A side straight over the support but concave at large: the support's hull facet", "[basis][hull]") {
+  // An 11 x 11 grid (h = 1) whose right side x = 10 - amp (y/10)^2 bends in
+  // (convex over each support) below y = 8 and bulges out to 10 + amp above:
+  // the cloud's hull there is one facet from (10, 0) to (10 + amp, 8), a few
+  // amp inside of the points on the side's segments, which lie on the hull of
+  // their own support, where the dual has no minimizer. (A workpiece side as a
+  // cutting tool approaches; amp from 2e-6 to 2e-5 failed before.)
+  const double amp = GENERATE(2e-6, 1e-5, 2e-5);
+  const int n = 11;
+  Eigen::Matrix2Xd nodes(2, n * n);
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const double bend = j >= 8 ? amp : -amp * (j / 10.0) * (j / 10.0);
+      nodes.col(j * n + i) << i + (i == n - 1 ? bend : 0.0), j;
+    }
+  const MaxEntBasis<2> basis(nodes, Eigen::VectorXd::Ones(n * n));
+  for (int j = 0; j < 5; ++j)
+    for (double t : {0.1, 0.5, 0.9}) {
+      const Eigen::Vector2d a = nodes.col(j * n + n - 1), b = nodes.col((j + 1) * n + n - 1);
+      const Eigen::Vector2d x = a + t * (b - a);
+      INFO("amp " << amp << ", point (" << x.transpose() << ")");
+      const auto e = basis.evaluate(x);
+      double sum = 0;
+      Eigen::Vector2d lin = Eigen::Vector2d::Zero(), gsum = Eigen::Vector2d::Zero();
+      for (std::size_t k = 0; k < e.node.size(); ++k) {
+        sum += e.p[k];
+        lin += e.p[k] * nodes.col(e.node[k]);
+        gsum += e.gradients().col(static_cast<Eigen::Index>(k));
+        // The side's nodes carry the weight (weak Kronecker-delta property, to
+        // the distance from the support's hull where the dual is solvable).
+        if (e.node[k] % n != n - 1) CHECK(e.p[k] <= 10 * amp);
+      }
+      CHECK(std::abs(sum - 1.0) <= 1e-12);
+      CHECK((lin - x).norm() <= 3e-6);  // the accuracy stated on a hull facet
+      CHECK(gsum.allFinite());
+      CHECK(gsum.norm() <= 1e-5);  // one-sided limit from just inside (solve_on_hull)
+    }
+}
+
 TEST_CASE("Batch evaluation: thread count and blocks do not change results", "[basis]") {
   const auto cloud = grid_cloud("perturbed", 30);
   const MaxEntBasis<2> basis(cloud.nodes, cloud.h);

@@ -17,6 +17,7 @@
 #include <cmath>
 #include <exception>
 #include <limits>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -39,7 +40,9 @@ namespace maxentflow {
 /// at most 1e-8 h inside the hull (h: the nearest node's spacing; the dual's
 /// acceptance), at most 3e-6 h_max on or within 1e-6 h of a hull facet (h_max:
 /// the support's largest spacing), where the basis is the facet's at x's
-/// projection, with the facet's nodes taken within 2e-6 h of its line.
+/// projection, with the facet's nodes taken within 2e-6 h of its line. The
+/// same holds on a facet of the support's own hull where the dual has no
+/// minimizer (a side straight over the support, concave at large).
 template <int Dim>
 class MaxEntBasis {
  public:
@@ -424,11 +427,58 @@ class MaxEntBasis {
         } catch (const Error&) {
           const auto& F = hull_[static_cast<std::size_t>(nearest)];
           gather(x, cell, ws);
-          return solve_on_hull(x, ws, m, h_ref, F, -F.n, gradients, id, -s_near);
+          try {
+            return solve_on_hull(x, ws, m, h_ref, F, -F.n, gradients, id, -s_near);
+          } catch (const Error&) {
+            return on_support_hull(x, cell, ws, m, h_ref, gradients, id);
+          }
         }
       }
     }
-    return solve_interior(x, ws, m, h_ref, lambda0, gradients, id);
+    try {
+      return solve_interior(x, ws, m, h_ref, lambda0, gradients, id);
+    } catch (const Error&) {
+      return on_support_hull(x, cell, ws, m, h_ref, gradients, id);
+    }
+  }
+
+  // Called while an Error from the dual is being handled: x on (or within
+  // 1e-6 h of) the hull of its support but not of the cloud, e.g. on a side
+  // that is straight over the support and concave at large (a workpiece side
+  // dented by 1e-5 h over its length as a cutting tool approaches). The
+  // basis there is that facet's, as on the cloud's hull. Where it is not, or
+  // the facet's basis fails too, the dual's Error goes on.
+  Info on_support_hull(const Point& x, int cell, Workspace& ws, int m, double h_ref, bool gradients,
+                       int id) const {
+    const std::exception_ptr dual_error = std::current_exception();
+    gather(x, cell, ws);
+    const std::optional<detail::HalfSpace<Dim>> F = support_facet(x, ws, m, h_ref);
+    if (!F) std::rethrow_exception(dual_error);
+    try {
+      return solve_on_hull(x, ws, m, h_ref, *F, -F->n, gradients, id, std::max(0.0, F->c - F->n.dot(x)));
+    } catch (const Error&) {
+      std::rethrow_exception(dual_error);
+    }
+  }
+
+  // The facet of the support's convex hull that x lies on or within 1e-6
+  // h_ref of (x within the facet's extent), if any.
+  std::optional<detail::HalfSpace<Dim>> support_facet(const Point& x, const Workspace& ws, int m,
+                                                      double h_ref) const {
+    Points xa(Dim, m);
+    for (int j = 0; j < m; ++j) xa.col(j) = nodes_.col(ws.support[static_cast<std::size_t>(j)]);
+    const double near = 1e-6 * h_ref, tol = on_hull_tol(h_ref);
+    std::optional<detail::HalfSpace<Dim>> best;
+    double s_best = -near;
+    for (const auto& F : detail::hull_halfspaces(xa, tol)) {
+      const double s = F.n.dot(x) - F.c;
+      const bool within = ((x - F.lo).array() >= -near).all() && ((F.hi - x).array() >= -near).all();
+      if (within && s >= s_best && s <= tol) {
+        best = F;
+        s_best = s;
+      }
+    }
+    return best;
   }
 
   Info solve_interior(const Point& x, Workspace& ws, int m, double h_ref, const Point* lambda0,
