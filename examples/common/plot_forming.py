@@ -3,13 +3,15 @@
 
   plot_forming.py DIR --maps pressure:1,50,100 velocity_y:100 \
                       --force-tool "top plate" [--exact exact.csv] \
-                      [--profile profile_axis_step1.csv ...]
+                      [--profile profile_axis_step1.csv ...] [--mesh 100] [--cutting]
 
 Maps: tripcolor of a VTU point field over the kept triangles (the integration
 mesh), with the tools' outlines from tools.csv; `velocity_x` / `velocity_y` pick
 a component. Curve: the tool force against its stroke from forces.csv, with the
 exact curve if given. Profiles: a two-column CSV (position, value) as a line,
-like the paper's Fig. 7 (name.csv -> name.png).
+like the paper's Fig. 7 (name.csv -> name.png). Mesh: the node cloud with its
+integration mesh (alpha-shape) at a step. Cutting: Fc and Ft against time
+(cutting_forces.csv) and the chip thickness against the cut length (chip.csv).
 """
 import argparse
 import csv
@@ -148,6 +150,53 @@ def plot_profile(directory, name):
     plt.close(fig)
 
 
+def plot_mesh(directory, prefix, step):
+    vtu = os.path.join(directory, "%s_%04d.vtu" % (prefix, step))
+    if not os.path.exists(vtu):
+        print("plot_forming: no %s, skipped" % vtu, file=sys.stderr)
+        return
+    x, y, tris, _ = read_vtu(vtu)
+    fig, ax = plt.subplots(figsize=(7.2, 5.2))
+    ax.triplot(mtri.Triangulation(x, y, tris), color="tab:blue", lw=0.4)
+    ax.plot(x, y, "k.", ms=2)
+    for name, (tx, ty) in tool_outlines(directory, step).items():
+        ax.plot(tx, ty, color="0.3", lw=2.5)
+    ax.set_aspect("equal")
+    ax.set_title("nodes and integration mesh, step %d (%d nodes)" % (step, len(x)))
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, "mesh_step%d.png" % step), dpi=130)
+    plt.close(fig)
+
+
+def plot_cutting(directory):
+    path = os.path.join(directory, "cutting_forces.csv")
+    if os.path.exists(path):
+        rows = read_csv(path)
+        t = [float(r["time"]) for r in rows]
+        fig, ax = plt.subplots(figsize=(6.4, 4.4))
+        ax.plot(t, [float(r["Fc"]) for r in rows], "-", label="cutting force Fc")
+        ax.plot(t, [float(r["Ft"]) for r in rows], "-", label="thrust force Ft")
+        ax.set_xlabel("time")
+        ax.set_ylabel("force per unit depth")
+        ax.grid(True, alpha=0.3)
+        ax.legend()
+        fig.tight_layout()
+        fig.savefig(os.path.join(directory, "cutting_forces.png"), dpi=130)
+        plt.close(fig)
+    path = os.path.join(directory, "chip.csv")
+    if os.path.exists(path):
+        rows = read_csv(path)
+        if rows:
+            fig, ax = plt.subplots(figsize=(6.4, 4.4))
+            ax.plot([float(r["cut_length"]) for r in rows], [float(r["chip_thickness"]) for r in rows], "o-", ms=2)
+            ax.set_xlabel("cut length")
+            ax.set_ylabel("chip thickness")
+            ax.grid(True, alpha=0.3)
+            fig.tight_layout()
+            fig.savefig(os.path.join(directory, "chip_thickness.png"), dpi=130)
+            plt.close(fig)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("directory")
@@ -156,6 +205,8 @@ def main():
     ap.add_argument("--force-tool")
     ap.add_argument("--exact")
     ap.add_argument("--profile", nargs="*", default=[], help="two-column CSV files to draw as curves")
+    ap.add_argument("--mesh", type=int, nargs="*", default=[], help="steps to draw the nodes and mesh of")
+    ap.add_argument("--cutting", action="store_true", help="cutting forces and chip thickness")
     a = ap.parse_args()
     for spec in a.maps:
         field, steps = spec.split(":")
@@ -165,6 +216,10 @@ def main():
         plot_force(a.directory, a.force_tool, a.exact)
     for name in a.profile:
         plot_profile(a.directory, name)
+    for step in a.mesh:
+        plot_mesh(a.directory, a.prefix, step)
+    if a.cutting:
+        plot_cutting(a.directory)
 
 
 if __name__ == "__main__":
