@@ -55,7 +55,8 @@ struct RestartOptions {
   /// stamped with and a restart must match.
   static std::string signature(const CLI::App& app) {
     static const std::set<std::string> ignored = {"out-dir", "restart", "checkpoint-every", "no-plots",
-                                                  "verbose", "check", "area-tol"};
+                                                  "verbose", "check", "area-tol", "plateau-tol",
+                                                  "ratio-tol"};
     std::istringstream all(app.config_to_str(true, false));
     std::string line, sig;
     while (std::getline(all, line)) {
