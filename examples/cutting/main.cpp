@@ -25,6 +25,7 @@
 #include "common/friction.hpp"
 #include "common/plotting.hpp"
 #include "common/restart.hpp"
+#include "cutting/cutting_case.hpp"
 
 namespace fs = std::filesystem;
 using namespace maxentflow;
@@ -34,37 +35,34 @@ namespace {
 constexpr double deg = std::numbers::pi / 180.0;
 
 struct Options {
-  int nx = 122, ny = 41, steps = 350, vtu_every = 35;
-  double length = 40, height = 13.2, V = 1500, dt = 2e-5, t0 = 1.5;
-  double rake = 5, clearance = 7, edge_radius = 0;
-  double gamma = 1.6, Cs = 0.5, alpha = 1.3, mu0 = 150, n = 0.2;
-  double tol0 = StepperParams{}.tol0;
+  examples::CuttingSetup s;
+  int steps = 350, vtu_every = 35;
   double area_tol = 0.02, plateau_tol = 0.10, ratio_tol = 0.05;
-  bool no_plots = false, check = false, verbose = false, no_rezone = false;
+  bool no_plots = false, check = false, verbose = false;
   std::string out = "results/cutting";
   examples::FrictionOptions friction;
   examples::RestartOptions restart;
 };
 
 void add_options(CLI::App& app, Options& o) {
-  app.add_option("--nx", o.nx, "Workpiece nodes along the cut")->check(CLI::Range(8, 4000));
-  app.add_option("--ny", o.ny, "Workpiece nodes across the height")->check(CLI::Range(4, 4000));
+  app.add_option("--nx", o.s.nx, "Workpiece nodes along the cut")->check(CLI::Range(8, 4000));
+  app.add_option("--ny", o.s.ny, "Workpiece nodes across the height")->check(CLI::Range(4, 4000));
   app.add_option("--steps", o.steps, "Time steps")->check(CLI::Range(1, 1000000));
-  app.add_option("--dt", o.dt, "Time step")->check(CLI::PositiveNumber);
-  app.add_option("--length", o.length, "Workpiece length")->check(CLI::PositiveNumber);
-  app.add_option("--height", o.height, "Workpiece height")->check(CLI::PositiveNumber);
-  app.add_option("--velocity", o.V, "Cutting speed (the tool moves -x)")->check(CLI::PositiveNumber);
-  app.add_option("--t0", o.t0, "Uncut chip thickness (depth of cut)")->check(CLI::PositiveNumber);
-  app.add_option("--rake", o.rake, "Rake angle, degrees")->check(CLI::Range(-30.0, 45.0));
-  app.add_option("--clearance", o.clearance, "Clearance angle, degrees")->check(CLI::Range(0.5, 30.0));
-  app.add_option("--edge-radius", o.edge_radius, "Cutting edge radius (0: sharp)")->check(CLI::NonNegativeNumber);
-  app.add_option("--gamma", o.gamma, "Max-ent locality gamma")->check(CLI::PositiveNumber);
-  app.add_option("--tol0", o.tol0, "Max-ent support cut-off on the prior weight")->check(CLI::Range(1e-300, 0.5));
-  app.add_option("--Cs", o.Cs, "Stabilization constant Cs (Eq. 14)")->check(CLI::NonNegativeNumber);
-  app.add_option("--alpha", o.alpha, "Alpha-shape parameter (circumradius <= alpha h)")->check(CLI::PositiveNumber);
-  app.add_option("--mu0", o.mu0, "Norton-Hoff mu0")->check(CLI::PositiveNumber);
-  app.add_option("--n", o.n, "Norton-Hoff exponent n")->check(CLI::PositiveNumber);
-  app.add_flag("--no-rezone{false}", o.no_rezone, "Keep the initial nodes (no node removal or insertion)");
+  app.add_option("--dt", o.s.dt, "Time step")->check(CLI::PositiveNumber);
+  app.add_option("--length", o.s.length, "Workpiece length")->check(CLI::PositiveNumber);
+  app.add_option("--height", o.s.height, "Workpiece height")->check(CLI::PositiveNumber);
+  app.add_option("--velocity", o.s.V, "Cutting speed (the tool moves -x)")->check(CLI::PositiveNumber);
+  app.add_option("--t0", o.s.t0, "Uncut chip thickness (depth of cut)")->check(CLI::PositiveNumber);
+  app.add_option("--rake", o.s.rake, "Rake angle, degrees")->check(CLI::Range(-30.0, 45.0));
+  app.add_option("--clearance", o.s.clearance, "Clearance angle, degrees")->check(CLI::Range(0.5, 30.0));
+  app.add_option("--edge-radius", o.s.edge_radius, "Cutting edge radius (0: sharp)")->check(CLI::NonNegativeNumber);
+  app.add_option("--gamma", o.s.gamma, "Max-ent locality gamma")->check(CLI::PositiveNumber);
+  app.add_option("--tol0", o.s.tol0, "Max-ent support cut-off on the prior weight")->check(CLI::Range(1e-300, 0.5));
+  app.add_option("--Cs", o.s.Cs, "Stabilization constant Cs (Eq. 14)")->check(CLI::NonNegativeNumber);
+  app.add_option("--alpha", o.s.alpha, "Alpha-shape parameter (circumradius <= alpha h)")->check(CLI::PositiveNumber);
+  app.add_option("--mu0", o.s.mu0, "Norton-Hoff mu0")->check(CLI::PositiveNumber);
+  app.add_option("--n", o.s.n, "Norton-Hoff exponent n")->check(CLI::PositiveNumber);
+  app.add_flag("--no-rezone{false}", o.s.rezone, "Keep the initial nodes (no node removal or insertion)");
   app.add_option("--vtu-every", o.vtu_every, "Write a VTU every this many steps (and at steps 1 and last)")
       ->check(CLI::Range(1, 1000000));
   app.add_option("--out-dir", o.out, "Results folder");
@@ -87,9 +85,9 @@ void add_options(CLI::App& app, Options& o) {
 struct ToolFrame {
   Eigen::Vector2d tip, along, normal;
   ToolFrame(const Options& o, double travel)
-      : tip(o.length + 0.05 * o.length / (o.nx - 1) - travel, o.height - o.t0),
-        along(std::sin(o.rake * deg), std::cos(o.rake * deg)),
-        normal(-std::cos(o.rake * deg), std::sin(o.rake * deg)) {}
+      : tip(o.s.tip_start() - Eigen::Vector2d(travel, 0)),
+        along(std::sin(o.s.rake * deg), std::cos(o.s.rake * deg)),
+        normal(-std::cos(o.s.rake * deg), std::sin(o.s.rake * deg)) {}
 };
 
 // The chip thickness on a configuration: the mean distance from the rake
@@ -105,7 +103,7 @@ double chip_thickness(const Options& o, const Stepper<NortonHoff>& sim, const To
     if (flags[static_cast<std::size_t>(a)] != 0) continue;
     const Eigen::Vector2d r = x.col(a) - f.tip;
     const double s = r.dot(f.along), d = r.dot(f.normal);
-    if (x(1, a) <= o.height || s < 1.5 * o.t0 || s > 4 * o.t0 || d <= 0) continue;
+    if (x(1, a) <= o.s.height || s < 1.5 * o.s.t0 || s > 4 * o.s.t0 || d <= 0) continue;
     sum += d;
     ++count;
   }
@@ -121,9 +119,9 @@ double shear_angle_deg(double t0, double tc, double rake_deg) {
 // The mean effective strain rate of the nodes within h of the shear plane
 // (from the tip at angle phi to the free surface).
 double shear_zone_rate(const Options& o, const Stepper<NortonHoff>& sim, const ToolFrame& f, double phi_deg) {
-  const double phi = phi_deg * deg, h = o.length / (o.nx - 1);
+  const double phi = phi_deg * deg, h = o.s.spacing();
   const Eigen::Vector2d e(-std::cos(phi), std::sin(phi));
-  const double len = o.t0 / std::sin(phi);
+  const double len = o.s.t0 / std::sin(phi);
   const auto& x = sim.nodes_solved();
   double sum = 0;
   int count = 0;
@@ -146,56 +144,30 @@ int main(int argc, char** argv) {
   add_options(app, o);
   CLI11_PARSE(app, argc, argv);
   if (o.restart.restarting()) o.out = o.restart.dir;
-  const double h = o.length / (o.nx - 1);
-  if (!(o.t0 < 0.5 * o.height)) {
-    std::cerr << "cutting: --t0 " << o.t0 << " must be less than half the workpiece height (--height " << o.height
+  const double h = o.s.spacing();
+  if (!(o.s.t0 < 0.5 * o.s.height)) {
+    std::cerr << "cutting: --t0 " << o.s.t0 << " must be less than half the workpiece height (--height " << o.s.height
               << ")\n";
     return 2;
   }
-  if (!(o.steps * o.dt * o.V < 0.75 * o.length)) {
-    std::cerr << "cutting: the cut length --steps x --dt x --velocity = " << o.steps * o.dt * o.V
-              << " must stay below 3/4 of the workpiece (--length " << o.length << ")\n";
+  if (!(o.steps * o.s.dt * o.s.V < 0.75 * o.s.length)) {
+    std::cerr << "cutting: the cut length --steps x --dt x --velocity = " << o.steps * o.s.dt * o.s.V
+              << " must stay below 3/4 of the workpiece (--length " << o.s.length << ")\n";
     return 2;
   }
-  if (!(o.edge_radius <= 0.5 * h)) {
-    std::cerr << "cutting: --edge-radius " << o.edge_radius << " exceeds half the node spacing (" << 0.5 * h
+  if (!(o.s.edge_radius <= 0.5 * h)) {
+    std::cerr << "cutting: --edge-radius " << o.s.edge_radius << " exceeds half the node spacing (" << 0.5 * h
               << "): the nodes would not resolve it\n";
     return 2;
   }
   const fs::path dir(o.out);
   try {
-    // 2. Nodes: a regular grid on the workpiece.
-    Eigen::Matrix2Xd x(2, o.nx * o.ny);
-    for (int j = 0; j < o.ny; ++j)
-      for (int i = 0; i < o.nx; ++i) x.col(j * o.nx + i) << o.length * i / (o.nx - 1), o.height * j / (o.ny - 1);
-
-    // 3. The stepper, with node rezoning to keep the spacing where the chip
-    //    forms. Each step starts from the last one's coefficients; direct
-    //    iteration reaches Newton's basin from there (as in E2).
-    StepperParams prm;
-    prm.dt = o.dt;
-    prm.gamma = o.gamma;
-    prm.tol0 = o.tol0;
-    prm.mesh.alpha = o.alpha;
-    prm.stabilization.Cs = o.Cs;
-    prm.adapt.enabled = !o.no_rezone;
-    prm.solver.newton_from_warm_start = false;
-    prm.solver.switch_increment = 0.1;
-    const NortonHoff material(o.mu0, o.n, 1e-6 * o.V / o.t0);
-    Stepper<NortonHoff> sim(x, material, prm);
-
-    // 4. The tool and the fixed edges.
-    const ToolFrame start(o, 0.0);
-    RigidTool tool = cutting_tool("tool", start.tip, o.rake, o.clearance, o.edge_radius, 8 * o.t0);
-    tool.set_velocity({-o.V, 0});
-    sim.add_tool(tool, o.friction.law(o.V));
-    const double tol = 1e-9 * o.length;
-    for (const auto& [name, point, normal] :
-         {std::tuple{"bottom", Eigen::Vector2d(0, 0), Eigen::Vector2d(0, 1)},
-          std::tuple{"left", Eigen::Vector2d(0, 0), Eigen::Vector2d(1, 0)}}) {
-      sim.add_velocity_condition({std::string(name) + " x", on_line(point, normal, tol), {1, 0}, 0.0});
-      sim.add_velocity_condition({std::string(name) + " y", on_line(point, normal, tol), {0, 1}, 0.0});
-    }
+    // 2-4. The case: the workpiece grid, the stepper (rezoning on), the tool
+    //      with its law and the fixed edges (cutting_case.hpp).
+    o.s.law = o.friction.law(o.s.V);
+    Stepper<NortonHoff> sim = examples::make_cutting(o.s);
+    const NortonHoff& material = sim.material();
+    const int nodes0 = o.s.nx * o.s.ny;
     sim.set_log(&std::cout);
     if (o.verbose) sim.parameters().solver.log = &std::cout;
 
@@ -203,7 +175,7 @@ int main(int argc, char** argv) {
     ResultsWriter results(dir);
     CsvTable forces({"step", "time", "cut_length", "Fc", "Ft"});
     CsvTable chip({"step", "time", "cut_length", "chip_thickness", "shear_angle_deg"});
-    const double area0 = o.length * o.height;
+    const double area0 = o.s.length * o.s.height;
     double worst_area = 0, min_gap = 0;
     double* const running[] = {&worst_area, &min_gap};
     const std::string signature = examples::RestartOptions::signature(app);
@@ -213,7 +185,7 @@ int main(int argc, char** argv) {
         forces.load(in);
         chip.load(in);
       });
-    const double gap0 = start.tip.x() - o.length;
+    const double gap0 = o.s.tip_start().x() - o.s.length;
     for (int k = sim.steps_done() + 1; k <= o.steps; ++k) {
       const auto& r = sim.step();
       const bool vtu = k == 1 || k == o.steps || k % o.vtu_every == 0;
@@ -225,7 +197,7 @@ int main(int argc, char** argv) {
       const ToolFrame f(o, travel);
       const double tc = chip_thickness(o, sim, f);
       if (std::isfinite(tc)) {
-        chip.cell(k).cell(t_start).cell(cut).cell(tc).cell(shear_angle_deg(o.t0, tc, o.rake));
+        chip.cell(k).cell(t_start).cell(cut).cell(tc).cell(shear_angle_deg(o.s.t0, tc, o.s.rake));
         chip.end_row();
       }
       worst_area = std::max(worst_area, std::abs(sim.mesh().total_area() / area0 - 1));
@@ -256,15 +228,15 @@ int main(int argc, char** argv) {
     fc_mean /= n_steps - from;
     ft_mean /= n_steps - from;
     const double band = std::max(fc_hi / fc_mean - 1, 1 - fc_lo / fc_mean);
-    const double ratio = ft_mean / fc_mean, ratio_exact = -std::tan(o.rake * deg);
+    const double ratio = ft_mean / fc_mean, ratio_exact = -std::tan(o.s.rake * deg);
     const ToolFrame last(o, hist.back().tool_stroke[0]);
     const double tc = chip_thickness(o, sim, last);
-    const double phi_merchant = 45 + 0.5 * o.rake;
-    const double phi = std::isfinite(tc) ? shear_angle_deg(o.t0, tc, o.rake) : phi_merchant;
+    const double phi_merchant = 45 + 0.5 * o.s.rake;
+    const double phi = std::isfinite(tc) ? shear_angle_deg(o.s.t0, tc, o.s.rake) : phi_merchant;
     const double d_shear = shear_zone_rate(o, sim, last, phi);
     const double k_shear = std::sqrt(3.0) * material.viscosity(d_shear).mu * d_shear;  // sigma_eq / sqrt(3)
-    const double pm = phi_merchant * deg, a = o.rake * deg;
-    const double fc_merchant = k_shear * o.t0 * (1 / std::tan(pm) + std::tan(pm - a));
+    const double pm = phi_merchant * deg, a = o.s.rake * deg;
+    const double fc_merchant = k_shear * o.s.t0 * (1 / std::tan(pm) + std::tan(pm - a));
     int added = 0, removed = 0;
     double total = 0;
     for (const auto& r : hist) {
@@ -272,14 +244,14 @@ int main(int argc, char** argv) {
       removed += r.nodes_removed;
       total += r.seconds;
     }
-    std::cout << "cutting: " << n_steps << " steps, " << sim.nodes().cols() << " nodes (" << x.cols() << " at the "
+    std::cout << "cutting: " << n_steps << " steps, " << sim.nodes().cols() << " nodes (" << nodes0 << " at the "
               << "start, +" << added << " -" << removed << " by rezoning), " << total << " s\n"
               << "  max area change " << 100 * worst_area << " %, min gap " << min_gap << " h\n"
               << "  cutting force over the last 30 % of the steps: mean Fc " << fc_mean << ", band +-"
               << 100 * band << " %; Ft/Fc " << ratio << " (frictionless rake: -tan(rake) = " << ratio_exact
               << ")\n"
               << "  chip thickness "
-              << (std::isfinite(tc) ? detail::cat(tc, " (t0 ", o.t0, "), shear angle ", phi, " deg")
+              << (std::isfinite(tc) ? detail::cat(tc, " (t0 ", o.s.t0, "), shear angle ", phi, " deg")
                                     : std::string("not measured (no chip above the uncut surface yet)"))
               << " (Merchant: t0, " << phi_merchant << " deg); Fc / Merchant's k t0 (cot phi + tan(phi - rake)) "
               << fc_mean / fc_merchant << " (k " << k_shear << " at the shear zone's mean strain rate "
@@ -300,11 +272,11 @@ int main(int argc, char** argv) {
           ++failed;
         }
       };
-      check(min_gap >= -prm.penetration_tol, "a node inside the tool");
+      check(min_gap >= -sim.parameters().penetration_tol, "a node inside the tool");
       check(worst_area < o.area_tol, "area changes by more than --area-tol");
       // A plateau needs the chip formed: the spec's run cuts 7 t0 and judges
       // its last 30 % (from 4.9 t0 on).
-      if (hist.back().tool_stroke[0] - gap0 >= 5 * o.t0)
+      if (hist.back().tool_stroke[0] - gap0 >= 5 * o.s.t0)
         check(band <= o.plateau_tol, "the cutting force is not on a plateau over the last 30 % of the steps");
       else
         std::cout << "  plateau not checked: the cut is shorter than 5 t0\n";
