@@ -15,6 +15,7 @@
 
 #include "extrusion/extrusion_case.hpp"
 #include "peer/peer.hpp"
+#include "stepper/step_totals.hpp"
 
 using namespace maxentflow;
 
@@ -41,30 +42,14 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "bench_extrusion: stopped after %d steps: %s\n", done, e.what());
   }
   const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  double mesh = 0, basis = 0, solve = 0, post = 0, assembly = 0, factorization = 0, linear = 0;
-  int picard = 0, newton = 0, krylov = 0, retried = 0, pc_updates = 0, fallbacks = 0, max_krylov = 0;
-  for (const auto& r : sim.history()) {
-    mesh += r.mesh_seconds;
-    basis += r.basis_seconds;
-    solve += r.solve_seconds;
-    post += r.post_seconds;
-    assembly += r.assembly_seconds;
-    factorization += r.factorization_seconds;
-    linear += r.linear_seconds;
-    picard += r.picard;
-    newton += r.newton;
-    krylov += r.linear_iterations;
-    max_krylov = std::max(max_krylov, r.max_linear_iterations);
-    pc_updates += r.preconditioner_updates;
-    fallbacks += r.direct_fallbacks;
-    retried += r.substeps > 1;
-  }
+  const bench::StepTotals T(sim.history());
   std::printf(
       "BENCH extrusion nodes=%d steps=%d completed=%d threads=%d total_s=%.3f per_step_s=%.4f "
       "mesh_s=%.3f basis_s=%.3f solve_s=%.3f assembly_s=%.3f factorization_s=%.3f linear_s=%.3f "
       "post_s=%.3f output_s=%.3f picard=%d newton=%d krylov=%d preconditioner_updates=%d direct_fallbacks=%d max_krylov_per_solve=%d retried_steps=%d\n",
-      s.nx * s.ny, steps, done, max_threads(), total, total / std::max(1, done), mesh, basis, solve,
-      assembly, factorization, linear, post, output, picard, newton, krylov, pc_updates, fallbacks, max_krylov, retried);
+      s.nx * s.ny, steps, done, max_threads(), total, total / std::max(1, done), T.mesh, T.basis, T.solve,
+      T.assembly, T.factorization, T.linear, T.post, output, T.picard, T.newton, T.krylov, T.preconditioner_updates,
+      T.fallbacks, T.max_krylov, T.retried);
   const bool peer = !(argc > 4 && std::strcmp(argv[4], "--no-peer") == 0);
   const double ps = peer ? bench::peer_step1_seconds(s.nx) : -1.0;
   if (ps > 0)

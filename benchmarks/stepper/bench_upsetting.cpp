@@ -15,6 +15,7 @@
 #include <maxentflow/maxentflow.hpp>
 
 #include "peer/peer.hpp"
+#include "stepper/step_totals.hpp"
 
 using namespace maxentflow;
 
@@ -47,27 +48,12 @@ int run(int steps, const char* solver, bool peer) {
     output += std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
   }
   const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  double mesh = 0, basis = 0, solve = 0, post = 0, assembly = 0, factorization = 0, linear = 0;
-  int picard = 0, newton = 0, krylov = 0, max_krylov = 0, fallbacks = 0;
-  for (const auto& r : sim.history()) {
-    mesh += r.mesh_seconds;
-    basis += r.basis_seconds;
-    solve += r.solve_seconds;
-    post += r.post_seconds;
-    picard += r.picard;
-    newton += r.newton;
-    krylov += r.linear_iterations;
-    max_krylov = std::max(max_krylov, r.max_linear_iterations);
-    fallbacks += r.direct_fallbacks;
-    assembly += r.assembly_seconds;
-    factorization += r.factorization_seconds;
-    linear += r.linear_seconds;
-  }
+  const bench::StepTotals T(sim.history());
   std::printf(
       "BENCH upsetting nodes=%d steps=%d threads=%d total_s=%.3f per_step_s=%.4f mesh_s=%.3f "
       "basis_s=%.3f solve_s=%.3f (assembly_s=%.3f factorization_s=%.3f linear_s=%.3f) post_s=%.3f output_s=%.3f picard=%d newton=%d krylov=%d max_krylov_per_solve=%d direct_fallbacks=%d solver=%s\n",
-      nx * ny, steps, max_threads(), total, total / steps, mesh, basis, solve, assembly, factorization, linear, post, output, picard,
-      newton, krylov, max_krylov, fallbacks, solver);
+      nx * ny, steps, max_threads(), total, total / steps, T.mesh, T.basis, T.solve, T.assembly, T.factorization,
+      T.linear, T.post, output, T.picard, T.newton, T.krylov, T.max_krylov, T.fallbacks, solver);
   const double ps = peer ? bench::peer_step1_seconds(32) : -1.0;
   if (ps > 0) std::printf("BENCH upsetting_vs_peer run_over_peer_step1=%.2f target=1\n", total / ps);
   std::filesystem::remove_all(dir);
