@@ -97,6 +97,10 @@ TEST_CASE("solid rectangle: faces, convex corners, inside points", "[contact][to
   REQUIRE(block.closed());
   REQUIRE(block.pieces().size() == 4);
   CHECK(block.length() == Approx(6.0));
+  const auto corners = block.convex_corners();
+  REQUIRE(corners.size() == 4);  // material outside: every corner points into it
+  for (const V2& c : {V2(0, 0), V2(2, 0), V2(2, 1), V2(0, 1)})
+    CHECK(std::count_if(corners.begin(), corners.end(), [&](const V2& q) { return near(q, c); }) == 1);
 
   check(block.closest(V2(1, 1.5)), V2(1, 1), V2(0, 1), 0.5);
   check(block.closest(V2(-0.5, 0.5)), V2(0, 0.5), V2(-1, 0), 0.5);
@@ -130,6 +134,7 @@ TEST_CASE("container: material inside, concave corners, open side", "[contact][t
   REQUIRE(box.pieces().size() == 3);
   CHECK(near(box.pieces()[0].start, V2(0, 3)));  // open top: left wall first
   CHECK(near(box.pieces()[2].end, V2(4, 3)));
+  CHECK(box.convex_corners().empty());  // concave corners and open ends only
 
   check(box.closest(V2(1, 0.5)), V2(1, 0), V2(0, 1), 0.5);
   check(box.closest(V2(0.5, 2)), V2(0, 2), V2(1, 0), 0.5);
@@ -344,9 +349,17 @@ TEST_CASE("extrusion die: the paper's square die, edge radius, axisymmetric", "[
   check(die.closest(V2(290, 140)), V2(300, 150), V2(-1, -1) / s2, 10 * s2, true);
   check(die.closest(V2(305, 200)), V2(300, 200), V2(-1, 0), -5);
   check(die.closest(V2(150, 305)), V2(150, 300), V2(0, -1), -5);
+  // Its one convex corner is the die corner (the land's end and the
+  // face-wall corner are an open end and a concave corner); it moves with the die.
+  auto moved = die;
+  REQUIRE(die.convex_corners().size() == 1);
+  CHECK(near(die.convex_corners()[0], V2(300, 150)));
+  moved.translate(V2(2, -1));
+  CHECK(near(moved.convex_corners()[0], V2(302, 149)));
 
   const auto round = maxentflow::extrusion_die("round", V2(300, 150), V2(1, 0), 150, 30, 10);
   REQUIRE(round.pieces().size() == 3);
+  CHECK(round.convex_corners().empty());  // rounded: no sharp corner
   const V2 c(310, 160);
   check(round.closest(V2(290, 140)), c - 10 * V2(1, 1) / s2, V2(-1, -1) / s2, 20 * s2 - 10);
   check(round.closest(V2(290, 200)), V2(300, 200), V2(-1, 0), 10);

@@ -296,6 +296,44 @@ TEST_CASE("L-shape: the re-entrant corner is chamfered by half a cell, nothing e
   CHECK(mp.boundary_loops().size() == 1);
 }
 
+TEST_CASE("a solid (tool) in the re-entrant corner drops the chamfer that bridges it", "[mesh]") {
+  // The missing quadrant of the L is a tool's convex corner (a square die's):
+  // the chamfer triangle lies in it, and its corner node would be interior,
+  // out of the contact's reach.
+  const double h = 0.05;
+  const auto g = grid_cloud(21, 21, h, [](int i, int j) { return i <= 10 || j <= 10; });
+  const Eigen::Vector2d c(0.5, 0.5);
+  const int corner = g.at(10, 10);
+  Mesh m;
+  m.set_solid([&](const Eigen::Vector2d& p) { return std::min(p.x() - c.x(), p.y() - c.y()); });
+  m.build(g.x);
+  check_invariants(m);
+  CHECK(m.solid_dropped() == 1);
+  CHECK(std::abs(m.total_area() - 0.75) < 1e-14);
+  CHECK(std::abs(m.perimeter() - 4.0) < 1e-13);
+  CHECK(m.is_boundary_node(corner));
+  for (std::size_t t = 0; t < m.triangles().size(); ++t) {
+    const auto& v = m.triangles()[t];
+    const Eigen::Vector2d q = (g.x.col(v[0]) + g.x.col(v[1]) + g.x.col(v[2])) / 3.0;
+    CHECK(std::min(q.x() - c.x(), q.y() - c.y()) <= 0.1 * h);
+  }
+  // The chamfer's centroid lies h/3 deep: kept at a tolerance above that.
+  Mesh::params prm;
+  prm.solid_tolerance = 0.4;
+  m.set_parameters(prm);
+  m.build(g.x);
+  CHECK(m.solid_dropped() == 0);
+  CHECK(std::abs(m.total_area() - (0.75 + 0.5 * h * h)) < 1e-14);
+  // No solid: the plain alpha-shape.
+  m.set_solid(nullptr);
+  m.set_parameters(Mesh::params{});
+  m.build(g.x);
+  CHECK(m.solid_dropped() == 0);
+  CHECK(!m.is_boundary_node(corner));
+  prm.solid_tolerance = -1.0;
+  CHECK_THROWS_AS(Mesh(g.x, prm), Error);
+}
+
 TEST_CASE("annulus: one outer CCW loop and one CW hole", "[mesh]") {
   // Rings of nodes at r = 0.5 .. 1 (h = 0.05), alternate rings rotated half a step.
   const double r0 = 0.5, r1 = 1.0, h = 0.05;

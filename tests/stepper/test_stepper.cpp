@@ -487,6 +487,38 @@ TEST_CASE("rezoning: no node is put inside a tool", "[stepper][rezoning]") {
   CHECK_THROWS_AS(plan_node_adaptation(mesh, Eigen::VectorXd::Ones(3), prm), Error);
 }
 
+TEST_CASE("rezoning: a node on a convex tool corner next to the boundary, once", "[stepper][rezoning]") {
+  const Eigen::Matrix2Xd x = block_nodes(6, 6, 5, 5, false);  // h = h0 = 1
+  const IntegrationMesh<> mesh(x);
+  const Eigen::VectorXd h0 = Eigen::VectorXd::Ones(x.cols());
+  NodeAdaptivityParams prm;
+  auto node = [&](double px, double py) {
+    for (Eigen::Index k = 0; k < x.cols(); ++k)
+      if ((x.col(k) - Eigen::Vector2d(px, py)).norm() < 1e-12) return static_cast<int>(k);
+    return -1;
+  };
+  NodeAdaptation a;
+  a.inserted.resize(2, 0);
+  // On the right side between two nodes, 0.4 h outside it, on a node, far
+  // off, and one within min_ratio h0 of the first.
+  const std::vector<Eigen::Vector2d> corners{{5, 2.5}, {5.4, 0.5}, {5, 4}, {7, 2.5}, {5, 2.7}};
+  add_corner_nodes(mesh, h0, prm, corners, a);
+  REQUIRE(a.added() == 2);
+  CHECK((a.inserted.col(0) - Eigen::Vector2d(5, 2.5)).norm() < 1e-14);
+  CHECK((a.inserted.col(1) - Eigen::Vector2d(5.4, 0.5)).norm() < 1e-14);
+  auto same_pair = [](std::array<int, 2> p, int i, int j) { return (p[0] == i && p[1] == j) || (p[0] == j && p[1] == i); };
+  CHECK(same_pair(a.parents[0], node(5, 2), node(5, 3)));
+  CHECK(same_pair(a.parents[1], node(5, 0), node(5, 1)));
+  // The new node's data is its parents' mean; positions keep the corner.
+  Eigen::RowVectorXd f = Eigen::RowVectorXd::LinSpaced(x.cols(), 0.0, 1.0);
+  const auto g = a.transfer(f);
+  CHECK(g(x.cols()) == Approx(0.5 * (f[node(5, 2)] + f[node(5, 3)])));
+  CHECK((a.positions(x).col(x.cols() + 1) - Eigen::Vector2d(5.4, 0.5)).norm() < 1e-14);
+  // A corner already taken by this pass's insertion is not taken again.
+  add_corner_nodes(mesh, h0, prm, {Eigen::Vector2d(5, 2.6)}, a);
+  CHECK(a.added() == 2);
+}
+
 TEST_CASE("V1 with rezoning: plane-strain compression to half height stays exact as nodes come and go",
           "[verification][stepper][rezoning]") {
   // The homogeneous field is linear, so the max-ent solution is exact on any

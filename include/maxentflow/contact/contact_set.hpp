@@ -3,6 +3,7 @@
 #pragma once
 
 #include <algorithm>
+#include <limits>
 #include <cmath>
 #include <cstdint>
 #include <map>
@@ -213,6 +214,9 @@ class ContactSet {
       for (const auto& c : entries_[k].contact.points()) {
         if (!c.active) continue;
         const ToolProjection pr = tools_[k].closest(x.col(c.node));
+        // Outside a corner the closest point is the vertex: snapping would
+        // pull a node that rounds a die corner back onto it.
+        if (pr.at_corner && pr.gap > 0.0) continue;
         if (std::abs(pr.gap) <= snap_tol * std::max(c.h, h_mean)) x.col(c.node) -= pr.gap * pr.normal;
       }
   }
@@ -228,6 +232,21 @@ class ContactSet {
                                        " h; it was ", state(k, a), " in this step)"),
                            "ContactSet::check_penetration");
       }
+  }
+  /// How deep p lies inside the tools (the largest -gap; <= 0 outside all).
+  double depth(const Eigen::Vector2d& p) const {
+    double d = -std::numeric_limits<double>::infinity();
+    for (const auto& t : tools_) d = std::max(d, -t.gap(p));
+    return d;
+  }
+  /// The tools' sharp convex corners, where they are now.
+  std::vector<Eigen::Vector2d> convex_corners() const {
+    std::vector<Eigen::Vector2d> c;
+    for (const auto& t : tools_) {
+      const auto tc = t.convex_corners();
+      c.insert(c.end(), tc.begin(), tc.end());
+    }
+    return c;
   }
   /// True if p is outside every tool (where rezoning may put a node).
   bool admissible(const Eigen::Vector2d& p) const {

@@ -320,6 +320,14 @@ class RigidTool {
   }
   /// Travel so far, |displacement|.
   double stroke() const { return displacement_.norm(); }
+  /// The sharp convex corners (right turns between two pieces, pointing into
+  /// the material: a square die's corner, a cutting tool's tip), where they are now.
+  std::vector<Eigen::Vector2d> convex_corners() const {
+    std::vector<Eigen::Vector2d> c;
+    for (std::size_t j = 0; j < joints_.size(); ++j)
+      if (joints_[j].convex) c.push_back(pieces_[j % pieces_.size()].start + displacement_);
+    return c;
+  }
 
   /// Closest tool point to x, outward normal and signed gap. Inside a piece the normal
   /// is the piece's. At a corner or an open end the normal is (x - point)/|x - point|,
@@ -405,6 +413,7 @@ class RigidTool {
   struct Joint {
     Eigen::Vector2d bisector;
     bool sharp;  // corner or open end
+    bool convex = false;  // a sharp corner pointing into the material (a right turn)
   };
 
   std::string where(const char* method) const {
@@ -480,6 +489,7 @@ class RigidTool {
                          detail::cat(at, ", pieces ", (j + n - 1) % n, " and ", j % n));
       J.bisector = (in.normal(1.0) + out.normal(0.0)).normalized();
       J.sharp = std::abs(angle) > detail::tool_angle_tolerance;
+      J.convex = J.sharp && angle < 0.0;
     }
   }
 

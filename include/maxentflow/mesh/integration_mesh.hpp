@@ -57,6 +57,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <string>
 #include <type_traits>
@@ -138,7 +139,12 @@ class IntegrationMesh {
     /// Re-cuts with h from the kept triangles, until the kept set repeats
     /// (0: a single cut with the start spacing).
     int cut_iterations = 4;
+    /// With set_solid(): drop triangles whose centroid lies deeper than this
+    /// times h_T inside a solid.
+    double solid_tolerance = 0.1;
   };
+  /// Depth of a point inside solid obstacles (rigid tools): > 0 inside.
+  using SolidDepth = std::function<double(const Eigen::Vector2d&)>;
 
   IntegrationMesh() = default;
   explicit IntegrationMesh(const params& p) : prm_(p) { check_params(); }
@@ -157,6 +163,14 @@ class IntegrationMesh {
   /// an empty mesh after the cut, or a boundary that is not closed loops;
   /// the mesh is then empty().
   void build(const Points& nodes);
+  /// Solids the material cannot occupy (the tools), for the next builds: the
+  /// alpha cut keeps a Delaunay triangle that bridges a tool's convex corner
+  /// (a square die's corner between a node on the face and one on the land),
+  /// so an interior node of that triangle could flow into the tool unseen by
+  /// contact, which treats boundary nodes only. Such triangles are dropped.
+  void set_solid(SolidDepth depth) { solid_ = std::move(depth); }
+  /// Triangles the last build dropped as inside a solid.
+  int solid_dropped() const { return solid_dropped_; }
   /// No mesh (before the first build, or after a failed one).
   bool empty() const { return triangles_.empty(); }
 
@@ -255,6 +269,8 @@ class IntegrationMesh {
                       const char* where) const;
 
   params prm_;
+  SolidDepth solid_;
+  int solid_dropped_ = 0;
   Points nodes_;
   detail::Delaunay2 dt_;
   std::vector<Cell> triangles_;
@@ -295,6 +311,8 @@ void IntegrationMesh<D>::check_params() const {
     throw Error(detail::cat("cut_neighbours = ", prm_.cut_neighbours, " must be 0 or >= 2"), where);
   if (prm_.cut_iterations < 0)
     throw Error(detail::cat("cut_iterations = ", prm_.cut_iterations, " must be >= 0"), where);
+  if (!(prm_.solid_tolerance >= 0.0 && std::isfinite(prm_.solid_tolerance)))
+    throw Error(detail::cat("solid_tolerance = ", prm_.solid_tolerance, " must be >= 0 and finite"), where);
 }
 
 template <int D>
@@ -327,6 +345,7 @@ void IntegrationMesh<D>::clear() {
   hull_flag_.clear();
   boundary_nodes_.clear();
   orphans_.clear();
+  solid_dropped_ = 0;
   perimeter_ = 0.0;
   h_.resize(0);
   h_cut_.resize(0);
@@ -470,6 +489,7 @@ void IntegrationMesh<D>::alpha_cut(const std::string& where) {
   triangles_.reserve(nt);
   area_.reserve(nt);
   total_area_ = 0.0;
+  solid_dropped_ = 0;
   for (std::size_t t = 0; t < nt; ++t) {
     const auto& v = dt_.tri[t];
     const Eigen::Vector2d p = nodes_.col(v[0]), q = nodes_.col(v[1]), r = nodes_.col(v[2]);
@@ -482,6 +502,10 @@ void IntegrationMesh<D>::alpha_cut(const std::string& where) {
     radius_[t] = R;
     const double h = (h_cut_[v[0]] + h_cut_[v[1]] + h_cut_[v[2]]) / 3.0;
     if (R > prm_.alpha * h) continue;
+    if (solid_ && solid_((p + q + r) / 3.0) > prm_.solid_tolerance * h) {
+      ++solid_dropped_;
+      continue;
+    }
     dt2kept_[t] = static_cast<int>(triangles_.size());
     kept2dt_.push_back(static_cast<int>(t));
     triangles_.push_back({v[0], v[1], v[2]});

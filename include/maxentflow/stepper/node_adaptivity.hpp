@@ -31,6 +31,7 @@
 #include <array>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <numeric>
 #include <string>
 #include <unordered_map>
@@ -45,6 +46,11 @@ namespace maxentflow {
 
 struct NodeAdaptivityParams {
   bool enabled = false;
+  /// Keep a node on each convex tool corner the material wraps (a square
+  /// die's corner): without one the boundary cuts the corner, the alpha-shape
+  /// bridges it with a triangle inside the tool, and the node above the corner
+  /// turns interior, loses its contact row and flows into the tool.
+  bool corner_nodes = true;
   double min_ratio = 0.35;   ///< remove an end of a kept edge shorter than this * h0
   double max_ratio = 2.5;    ///< split a kept edge longer than this * h0
   double max_turn_deg = 20;  ///< boundary nodes are removed only where the boundary turns less
@@ -281,6 +287,42 @@ NodeAdaptation plan_node_adaptation(const Mesh& mesh, const Eigen::VectorXd& h0,
   out.inserted.resize(2, static_cast<Eigen::Index>(added.size()));
   for (std::size_t i = 0; i < added.size(); ++i) out.inserted.col(static_cast<Eigen::Index>(i)) = added[i];
   return out;
+}
+
+/// Adds to `a` a node on each corner in `corners` (convex tool corners) that
+/// lies within half a spacing of a boundary segment of `mesh` and has no node
+/// (kept or new) within min_ratio h0 of it; its data is its segment ends' mean.
+template <class Mesh>
+void add_corner_nodes(const Mesh& mesh, const Eigen::VectorXd& h0, const NodeAdaptivityParams& prm,
+                      const std::vector<Eigen::Vector2d>& corners, NodeAdaptation& a) {
+  const auto& x = mesh.nodes();
+  std::vector<char> gone(static_cast<std::size_t>(x.cols()), 0);
+  for (int r : a.removed) gone[static_cast<std::size_t>(r)] = 1;
+  for (const Eigen::Vector2d& c : corners) {
+    bool crowded = false;
+    for (Eigen::Index k = 0; k < x.cols() && !crowded; ++k)
+      crowded = !gone[static_cast<std::size_t>(k)] && (x.col(k) - c).norm() < prm.min_ratio * h0[k];
+    for (std::size_t i = 0; i < a.parents.size() && !crowded; ++i)
+      crowded = (a.inserted.col(static_cast<Eigen::Index>(i)) - c).norm() <
+                prm.min_ratio * 0.5 * (h0[a.parents[i][0]] + h0[a.parents[i][1]]);
+    if (crowded) continue;
+    double best = std::numeric_limits<double>::infinity();
+    std::array<int, 2> ends{-1, -1};
+    for (const auto& seg : mesh.boundary_segments()) {
+      if (gone[static_cast<std::size_t>(seg.a)] || gone[static_cast<std::size_t>(seg.b)]) continue;
+      const Eigen::Vector2d p = x.col(seg.a), q = x.col(seg.b);
+      const double t = std::clamp((c - p).dot(q - p) / (q - p).squaredNorm(), 0.0, 1.0);
+      const double d = (p + t * (q - p) - c).norm();
+      if (d <= 0.5 * 0.5 * (mesh.h()(seg.a) + mesh.h()(seg.b)) && d < best) {
+        best = d;
+        ends = {seg.a, seg.b};
+      }
+    }
+    if (ends[0] < 0) continue;
+    a.parents.push_back(ends);
+    a.inserted.conservativeResize(2, a.inserted.cols() + 1);
+    a.inserted.col(a.inserted.cols() - 1) = c;
+  }
 }
 
 }  // namespace maxentflow

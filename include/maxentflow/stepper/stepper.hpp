@@ -480,6 +480,11 @@ class Stepper {
     auto t = clock::now();
     Configuration cfg;
     cfg.mesh = std::make_shared<Mesh>(prm_.mesh);
+    // No material inside a tool: at a square die's corner the alpha cut keeps
+    // a triangle across the die, and its interior node would flow into the die
+    // (the rezoning's corner node then rounds the corner: NodeAdaptivityParams).
+    if (!contact_.tools().empty())
+      cfg.mesh->set_solid([this](const Eigen::Vector2d& p) { return contact_.depth(p); });
     cfg.mesh->build(x_);
     if (!h0_set_) {  // the rezoning's target spacing: the first configuration's
       fields_.flat(k_.h0) = cfg.mesh->h();
@@ -741,7 +746,9 @@ class Stepper {
     Mesh mesh(prm_.mesh);
     mesh.build(x_);
     const auto admissible = [this](const Eigen::Vector2d& p) { return contact_.admissible(p); };
-    const NodeAdaptation a = plan_node_adaptation(mesh, fields_.flat(k_.h0), prm_.adapt, admissible);
+    NodeAdaptation a = plan_node_adaptation(mesh, fields_.flat(k_.h0), prm_.adapt, admissible);
+    if (prm_.adapt.corner_nodes)
+      add_corner_nodes(mesh, fields_.flat(k_.h0), prm_.adapt, contact_.convex_corners(), a);
     rec.mesh_seconds += since(t);
     if (a.empty()) return;
     const std::vector<int> map = a.old_to_new(x_.cols());
