@@ -61,6 +61,8 @@ void add_options(CLI::App& app, Options& o) {
   app.add_option("--Cs", o.s.Cs, "Stabilization constant Cs (Eq. 14)")->check(CLI::NonNegativeNumber);
   app.add_option("--alpha", o.s.alpha, "Alpha-shape parameter (circumradius <= alpha h)")->check(CLI::PositiveNumber);
   app.add_option("--mu0", o.s.mu0, "Norton-Hoff mu0")->check(CLI::PositiveNumber);
+  app.add_option("--dmin", o.s.d_min, "Norton-Hoff regularization d_min, relative to V / t0")
+      ->check(CLI::Range(1e-12, 0.1));
   app.add_option("--n", o.s.n, "Norton-Hoff exponent n")->check(CLI::PositiveNumber);
   app.add_flag("--no-rezone{false}", o.s.rezone, "Keep the initial nodes (no node removal or insertion)");
   app.add_option("--vtu-every", o.vtu_every, "Write a VTU every this many steps (and at steps 1 and last)")
