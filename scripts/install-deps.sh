@@ -2,7 +2,7 @@
 # Installs the Debian packages maxentflow needs, skipping those already present.
 set -euo pipefail
 packages=(cmake g++ make libeigen3-dev libcgal-dev libsuitesparse-dev catch2 libcli11-dev
-          python3-matplotlib libopenblas0-pthread)
+          python3-matplotlib libopenblas0-pthread libmumps-seq-dev)
 # `install-deps.sh fuzz`: also clang and its libFuzzer runtime (scripts/fuzz.sh).
 [ "${1:-}" = fuzz ] && packages+=(clang libclang-rt-14-dev)
 missing=()

@@ -475,6 +475,44 @@ TEST_CASE("GMRES: exact preconditioner, stagnation without and with the direct f
   }
 }
 
+TEST_CASE("DirectSolver (MUMPS where built with it): the LU of a saddle system, refactorized; loud failures",
+          "[flow][solver][direct]") {
+  // A flow system's saddle matrix (velocity, pressure, multiplier rows) at
+  // the Stokes start, as the kept LU sees it.
+  FlowProblem<NortonHoff> P = compression(0.2, true, 9);
+  Eigen::SparseMatrix<double, Eigen::ColMajor, int> A;
+  Eigen::VectorXd R, X = Eigen::VectorXd::Zero(P.system->size());
+  P.system->assemble(X, Linearization::picard, A, R);
+  A.makeCompressed();
+  Eigen::SparseLU<Eigen::SparseMatrix<double>> ref(A);
+  REQUIRE(ref.info() == Eigen::Success);
+  const Eigen::VectorXd x_ref = ref.solve(-R);
+  // Backward error at machine level, and the reference LU's solution to
+  // the conditioning of the system (mu spans d_min's range).
+  DirectSolver d;
+  d.analyze(A);
+  d.factorize(A);
+  const Eigen::VectorXd x = d.solve(-R);
+  CHECK((A * x + R).norm() <= 1e-13 * (A.norm() * x.norm() + R.norm()));
+  CHECK((x - x_ref).norm() <= 1e-7 * x_ref.norm());
+  // New values on the same pattern: no new analysis.
+  const Eigen::SparseMatrix<double, Eigen::ColMajor, int> B = 3.0 * A;
+  d.factorize(B);
+  const Eigen::VectorXd y = d.solve(-R);
+  CHECK((B * y + R).norm() <= 1e-13 * (B.norm() * y.norm() + R.norm()));
+  CHECK((y - x_ref / 3.0).norm() <= 1e-7 * x_ref.norm());
+  // Another pattern without analyze(), and a singular matrix: Error.
+  Eigen::SparseMatrix<double, Eigen::ColMajor, int> C(A.rows(), A.cols());
+  C.setIdentity();
+  C.makeCompressed();
+  CHECK_THROWS_AS(d.factorize(C), Error);
+  Eigen::SparseMatrix<double, Eigen::ColMajor, int> S = A;
+  for (int k = S.outerIndexPtr()[0]; k < S.outerIndexPtr()[1]; ++k) S.valuePtr()[k] = 0.0;  // column 0
+  DirectSolver e;
+  e.analyze(S);
+  CHECK_THROWS_AS(e.factorize(S), Error);
+}
+
 TEST_CASE("the Krylov preconditioner is kept while it works, with the same solution",
           "[flow][solver][gmres]") {
   Eigen::VectorXd X_every, X_kept;

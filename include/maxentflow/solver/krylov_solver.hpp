@@ -17,6 +17,7 @@
 #include <maxentflow/core/dof_layout.hpp>
 #include <maxentflow/core/error.hpp>
 #include <maxentflow/solver/linear_solver.hpp>
+#include <maxentflow/solver/mumps_solver.hpp>
 
 namespace maxentflow {
 
@@ -84,7 +85,9 @@ struct GmresParams {
 /// same multiplier rows), 7 neighbours per node, and an exact LU whose fill
 /// grows like N log N in 2-D. Measured: tens of iterations, independent of
 /// the thread count and nearly of N (see benchmarks/flow).
-template <LinearSolver Preconditioner = UmfpackSolver>
+/// Kept: the LU of full system matrices (the kept LU, the direct fallback),
+/// MUMPS where the build has it (DirectSolver).
+template <LinearSolver Preconditioner = UmfpackSolver, LinearSolver Kept = DirectSolver>
 class GmresSolver {
  public:
   using Matrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
@@ -122,12 +125,13 @@ class GmresSolver {
     // After a fallback this structure's solves use the LU of that earlier A:
     // Newton's next matrices differ little from it, so GMRES needs a few
     // iterations where the linear-triangle preconditioner needed hundreds.
-    const Preconditioner& M = frozen_ ? kept_ : M_;
     Ar_ = A;  // row-major: the product is parallel (OpenMP) in Eigen
     const int max_iterations = allow_fallback ? prm_.max_iterations : std::min(prm_.max_iterations, prm_.restart);
     Eigen::VectorXd x = gmres([&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return Ar_ * v; },
-                              [&M](const Eigen::VectorXd& v) -> Eigen::VectorXd { return M.solve(v); }, b,
-                              max_iterations);
+                              [this](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+                                return frozen_ ? kept_.solve(v) : M_.solve(v);
+                              },
+                              b, max_iterations);
     if (last_residual_ <= prm_.tol || !allow_fallback) return x;
     require(prm_.direct_fallback,
             detail::cat("GMRES did not converge in ", last_iterations_, " iterations (relative residual ",
@@ -195,10 +199,8 @@ class GmresSolver {
   // GMRES corrects what the preconditioner leaves; refining its solves (LU
   // solvers that can) would only repeat products with P.
   void no_refinement() {
-    if constexpr (requires(Preconditioner& p) { p.set_refinement_steps(0); }) {
-      M_.set_refinement_steps(0);
-      kept_.set_refinement_steps(0);
-    }
+    if constexpr (requires(Preconditioner& p) { p.set_refinement_steps(0); }) M_.set_refinement_steps(0);
+    if constexpr (requires(Kept& p) { p.set_refinement_steps(0); }) kept_.set_refinement_steps(0);
   }
   template <class F>
   bool guard(F&& f) {
@@ -330,7 +332,8 @@ class GmresSolver {
 
   params prm_;
   bool analyzed_ = false, usable_ = false, frozen_ = false;
-  Preconditioner M_, kept_;
+  Preconditioner M_;
+  Kept kept_;
   bool kept_ok_ = false, map_ok_ = false, identity_ = false;
   DofLayout layout_, kept_layout_;
   std::vector<int> map_;  // current multiplier -> the kept LU's (-1: new)
