@@ -539,6 +539,43 @@ TEST_CASE("the Krylov preconditioner is kept while it works, with the same solut
   CHECK((X_every - X_kept).lpNorm<Eigen::Infinity>() <= 1e-7 * X_every.lpNorm<Eigen::Infinity>());
 }
 
+TEST_CASE("a warm-started solve's Picard iterations solve to eta_picard_warm: same solution, fewer Krylov iterations",
+          "[flow][solver][gmres]") {
+  Eigen::VectorXd X_rest;
+  {
+    auto P = compression(0.2);
+    NonlinearSolver<GmresSolver<>> s;
+    REQUIRE(s.solve(*P.system, X_rest).converged);
+  }
+  // A start a few per cent off the solution, as a time step's predictor is.
+  Eigen::VectorXd start = X_rest;
+  for (Eigen::Index i = 0; i < start.size(); ++i) start[i] *= 1.0 + 0.05 * std::sin(0.37 * static_cast<double>(i));
+  auto warm = [&](double eta_warm, Eigen::VectorXd& X) {
+    auto P = compression(0.2);
+    NonlinearSolverParams prm;
+    prm.newton_from_warm_start = false;  // Picard first, as E2 and E3 do
+    prm.switch_increment = 1e-3;         // so that Picard does a few iterations
+    prm.eta_picard_warm = eta_warm;
+    NonlinearSolver<GmresSolver<>> s(prm);
+    X = start;
+    return s.solve(*P.system, X);
+  };
+  Eigen::VectorXd X_tight, X_loose;
+  const SolveReport tight = warm(1e-4, X_tight), loose = warm(1e-2, X_loose);
+  INFO(tight.log() << "---\n" << loose.log());
+  REQUIRE(tight.converged);
+  REQUIRE(loose.converged);
+  REQUIRE(tight.picard >= 2);
+  int picard_its_tight = 0, picard_its_loose = 0;
+  for (const auto& h : tight.history)
+    if (h.kind == Linearization::picard) picard_its_tight += h.linear_iterations;
+  for (const auto& h : loose.history)
+    if (h.kind == Linearization::picard) picard_its_loose += h.linear_iterations;
+  CHECK(picard_its_loose < picard_its_tight);
+  CHECK((X_loose - X_tight).lpNorm<Eigen::Infinity>() <= 1e-6 * X_tight.lpNorm<Eigen::Infinity>());
+  CHECK((X_loose - X_rest).lpNorm<Eigen::Infinity>() <= 1e-6 * X_rest.lpNorm<Eigen::Infinity>());
+}
+
 TEST_CASE("GMRES: the kept LU serves the layouts it can be matched to", "[flow][solver][gmres]") {
   const int n = 300;
   const Eigen::SparseMatrix<double> A = convection_diffusion(n);

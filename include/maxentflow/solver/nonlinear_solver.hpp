@@ -128,6 +128,12 @@ struct NonlinearSolverParams {
   /// bench_flow (1k nodes) switched with the residual still at 0.67 and Newton
   /// diverged; at 1e-3 and 1e-4 it takes the Picard path of an exact solve.
   double eta_picard = 1e-4;
+  /// The cap for Picard solves of a warm-started solve (X comes in with a
+  /// velocity): there Picard only brings a start a few per cent off into
+  /// Newton's basin, and the looser solve does it in the same iterations
+  /// (E2, 15 steps: 45 Picard iterations, 1.9k Krylov iterations against
+  /// 3.7k at 1e-4; docs/method.md section 8).
+  double eta_picard_warm = 1e-2;
   double eta_min = 1e-12;
   /// Krylov policies: the preconditioner is rebuilt (assembled, factorized)
   /// once a solve needs more than this times the Krylov iterations per decade
@@ -191,9 +197,9 @@ class NonlinearSolver {
     fit_start(X, n);
     lu_made_this_solve_ = false;
     if (skip_carry_ > 0) --skip_carry_;
-    Linearization phase = prm_.newton && prm_.newton_from_warm_start && sys.velocity_norm(X) > 0
-                              ? Linearization::newton
-                              : Linearization::picard;
+    warm_start_ = sys.velocity_norm(X) > 0;
+    Linearization phase = prm_.newton && prm_.newton_from_warm_start && warm_start_ ? Linearization::newton
+                                                                                    : Linearization::picard;
     int fallbacks_before = 0;
     if constexpr (SteerableKrylovSolver<Linear>) fallbacks_before = linear_.direct_fallbacks();
     bool full_newton_step = false;
@@ -307,7 +313,9 @@ class NonlinearSolver {
     Eigen::VectorXd dx;
     if constexpr (SteerableKrylovSolver<Linear>) {
       const double eta = std::max(res, 0.5 * prm_.residual_tol / std::max(res, 1e-300));
-      const double cap = kind == Linearization::picard ? prm_.eta_picard : prm_.eta_max;
+      const double cap = kind != Linearization::picard ? prm_.eta_max
+                         : warm_start_                  ? prm_.eta_picard_warm
+                                                        : prm_.eta_picard;
       linear_.set_tolerance(std::clamp(eta, prm_.eta_min, cap));
       // A kept preconditioner that GMRES cannot converge with is rebuilt
       // before the (costly) direct fallback is tried.
@@ -472,6 +480,7 @@ class NonlinearSolver {
   long analyzed_generation_ = -1;
   int analyzed_size_ = -1;
   int picard_since_switch_ = 0;
+  bool warm_start_ = false;  // this solve's X came in with a velocity
   // The kept LU's history: made in the current solve(); solves left that make
   // their own at once; its first solve's iterations and the excess since.
   bool lu_made_this_solve_ = false;
