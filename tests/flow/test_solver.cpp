@@ -501,16 +501,68 @@ TEST_CASE("DirectSolver (MUMPS where built with it): the LU of a saddle system, 
   const Eigen::VectorXd y = d.solve(-R);
   CHECK((B * y + R).norm() <= 1e-13 * (B.norm() * y.norm() + R.norm()));
   CHECK((y - x_ref / 3.0).norm() <= 1e-7 * x_ref.norm());
-  // Another pattern without analyze(), and a singular matrix: Error.
+  // Another pattern without analyze() (other nonzeros; as many, elsewhere),
+  // and a singular matrix: Error.
   Eigen::SparseMatrix<double, Eigen::ColMajor, int> C(A.rows(), A.cols());
   C.setIdentity();
   C.makeCompressed();
   CHECK_THROWS_AS(d.factorize(C), Error);
+  {
+    std::vector<Eigen::Triplet<double>> t;
+    for (int j = 0; j < A.outerSize(); ++j)
+      for (Eigen::SparseMatrix<double, Eigen::ColMajor, int>::InnerIterator it(A, j); it; ++it)
+        t.emplace_back(static_cast<int>(it.row()), j, it.value());
+    // Column 0's first entry moves to a row where column 0 has none.
+    int free_row = -1;
+    for (int i = 0; i < A.rows() && free_row < 0; ++i)
+      if (A.coeff(i, 0) == 0.0) free_row = i;
+    REQUIRE(free_row >= 0);
+    t.front() = Eigen::Triplet<double>(free_row, 0, 1.0);
+    Eigen::SparseMatrix<double, Eigen::ColMajor, int> M(A.rows(), A.cols());
+    M.setFromTriplets(t.begin(), t.end());
+    M.makeCompressed();
+    REQUIRE(M.nonZeros() == A.nonZeros());
+    CHECK_THROWS_AS(d.factorize(M), Error);
+  }
   Eigen::SparseMatrix<double, Eigen::ColMajor, int> S = A;
   for (int k = S.outerIndexPtr()[0]; k < S.outerIndexPtr()[1]; ++k) S.valuePtr()[k] = 0.0;  // column 0
   DirectSolver e;
   e.analyze(S);
   CHECK_THROWS_AS(e.factorize(S), Error);
+
+  // The kept LU's solver (MUMPS with single-precision factors, built with
+  // MUMPS): on this saddle matrix (viscosities over d_min's decades) a raw
+  // solve with float factors is far off, GMRES makes it exact; double
+  // factors on request.
+  KeptLuSolver k;
+  k.analyze(A);
+  k.factorize(A);
+#ifdef MAXENTFLOW_HAVE_MUMPS
+  CHECK_FALSE(k.exact());
+  CHECK((A * k.solve(-R) + R).norm() > 1e-3 * R.norm());
+  k.set_exact(true);
+  k.factorize(A);
+  CHECK(k.exact());
+  CHECK((A * k.solve(-R) + R).norm() <= 1e-13 * (A.norm() * x.norm() + R.norm()));
+  {  // A direct fallback whose GMRES gets one iteration per LU: the float
+     // LU leaves it short, the double one it asks for then solves.
+    GmresParams one;
+    one.restart = 1;
+    GmresSolver<UmfpackSolver, KeptLuSolver> g1(one);
+    const Eigen::VectorXd w1 = g1.solve(A, -R);
+    CHECK(g1.direct_fallbacks() == 1);
+    CHECK(g1.exact_factorizations() == 1);
+    CHECK(g1.converged());
+    CHECK((A * w1 + R).norm() <= 1e-9 * R.norm());
+  }
+#endif
+  GmresSolver<UmfpackSolver, KeptLuSolver> g;  // GMRES's default tolerance, 1e-9
+  const Eigen::VectorXd w = g.solve(A, -R);  // no preconditioner given: the direct fallback
+  CHECK(g.direct_fallbacks() == 1);
+  CHECK(g.converged());
+  CHECK(g.exact_factorizations() == 0);  // GMRES refines the float factors
+  CHECK((A * w + R).norm() <= 1e-9 * R.norm());
+  CHECK((w - x_ref).norm() <= 1e-7 * x_ref.norm());
 }
 
 TEST_CASE("the Krylov preconditioner is kept while it works, with the same solution",
@@ -576,6 +628,48 @@ TEST_CASE("a warm-started solve's Picard iterations solve to eta_picard_warm: sa
   CHECK((X_loose - X_rest).lpNorm<Eigen::Infinity>() <= 1e-6 * X_rest.lpNorm<Eigen::Infinity>());
 }
 
+TEST_CASE("a warm-started solve's Picard iterations solve with a kept Picard LU: same solution, fewer Krylov "
+          "iterations than with the linear-triangle companion",
+          "[flow][solver][gmres]") {
+  Eigen::VectorXd X_rest;
+  {
+    auto P = compression(0.2);
+    NonlinearSolver<GmresSolver<>> s;
+    REQUIRE(s.solve(*P.system, X_rest).converged);
+  }
+  Eigen::VectorXd start = X_rest;
+  for (Eigen::Index i = 0; i < start.size(); ++i) start[i] *= 1.0 + 0.05 * std::sin(0.37 * static_cast<double>(i));
+  auto warm = [&](bool kept_picard, Eigen::VectorXd& X) {
+    auto P = compression(0.2);
+    NonlinearSolverParams prm;
+    prm.newton_from_warm_start = false;
+    prm.switch_increment = 1e-3;
+    prm.kept_lu_picard = kept_picard;
+    NonlinearSolver<GmresSolver<>> s(prm);
+    X = start;
+    // Two solves, as two steps: the second starts with the first's LUs.
+    SolveReport first = s.solve(*P.system, X);
+    REQUIRE(first.converged);
+    X = start;
+    return s.solve(*P.system, X);
+  };
+  Eigen::VectorXd X_kept, X_companion;
+  const SolveReport kept = warm(true, X_kept), companion = warm(false, X_companion);
+  INFO(kept.log() << "---\n" << companion.log());
+  REQUIRE(kept.converged);
+  REQUIRE(companion.converged);
+  REQUIRE(kept.picard >= 2);
+  int picard_its_kept = 0, picard_its_companion = 0;
+  for (const auto& h : kept.history)
+    if (h.kind == Linearization::picard) picard_its_kept += h.linear_iterations;
+  for (const auto& h : companion.history)
+    if (h.kind == Linearization::picard) picard_its_companion += h.linear_iterations;
+  CHECK(2 * picard_its_kept < picard_its_companion);
+  CHECK(kept.direct_fallbacks == 0);
+  CHECK((X_kept - X_companion).lpNorm<Eigen::Infinity>() <= 1e-6 * X_companion.lpNorm<Eigen::Infinity>());
+  CHECK((X_kept - X_rest).lpNorm<Eigen::Infinity>() <= 1e-6 * X_rest.lpNorm<Eigen::Infinity>());
+}
+
 TEST_CASE("GMRES: the kept LU serves the layouts it can be matched to", "[flow][solver][gmres]") {
   const int n = 300;
   const Eigen::SparseMatrix<double> A = convection_diffusion(n);
@@ -587,7 +681,7 @@ TEST_CASE("GMRES: the kept LU serves the layouts it can be matched to", "[flow][
   DofLayout L{n - 4, {}};
   for (int k = 0; k < 4; ++k) L.multipliers.push_back(DofLayout::key(0, k, 0));
 
-  GmresSolver<> g;
+  GmresSolver<UmfpackSolver, DirectSolver> g;  // an exact LU: one iteration where it is A's
   g.set_tolerance(1e-10);
   // An LU made while the layout did not describe A serves no layout.
   g.set_layout(DofLayout{10, {}});

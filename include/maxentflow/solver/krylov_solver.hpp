@@ -86,8 +86,10 @@ struct GmresParams {
 /// grows like N log N in 2-D. Measured: tens of iterations, independent of
 /// the thread count and nearly of N (see benchmarks/flow).
 /// Kept: the LU of full system matrices (the kept LU, the direct fallback),
-/// MUMPS where the build has it (DirectSolver).
-template <LinearSolver Preconditioner = UmfpackSolver, LinearSolver Kept = DirectSolver>
+/// MUMPS with single-precision factors where the build has it (KeptLuSolver):
+/// GMRES corrects what a preconditioner leaves, and the fallback's solve is
+/// refined by GMRES too.
+template <LinearSolver Preconditioner = UmfpackSolver, LinearSolver Kept = KeptLuSolver>
 class GmresSolver {
  public:
   using Matrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
@@ -156,9 +158,14 @@ class GmresSolver {
   }
   /// A kept LU can precondition solves of the current layout and size.
   bool kept_usable(Eigen::Index n) const { return kept_ok_ && map_ok_ && layout_.size() == n; }
-  /// LU of A, kept for the current layout.
-  void factorize_kept(const Matrix& A) {
+  /// LU of A, kept for the current layout; `exact`: in double precision
+  /// where the Kept policy factorizes in single precision by default.
+  void factorize_kept(const Matrix& A, bool exact = false) {
     kept_ok_ = false;
+    if constexpr (single_precision_kept) {
+      kept_.set_exact(exact);
+      if (exact) ++exact_factorizations_;
+    }
     kept_.analyze(A);
     kept_.factorize(A);
     kept_ok_ = true;
@@ -182,6 +189,11 @@ class GmresSolver {
   }
   /// LU factorizations made for the kept preconditioner (direct fallbacks included).
   int kept_factorizations() const { return kept_factorizations_; }
+  /// The Kept policy factorizes in single precision unless asked (set_exact).
+  static constexpr bool single_precision_kept = requires(Kept& k) { k.set_exact(true); };
+  /// Kept LUs made in double precision because a single-precision LU of the
+  /// same matrix left GMRES short of its tolerance.
+  int exact_factorizations() const { return exact_factorizations_; }
 
   int last_iterations() const { return last_iterations_; }
   /// The last solve reached the tolerance (after a direct fallback: its own residual did).
@@ -324,9 +336,25 @@ class GmresSolver {
     ++direct_fallbacks_;
     factorize_kept(A);
     frozen_ = true;
-    Eigen::VectorXd x = kept_.solve(b);
-    x += kept_.solve(b - A * x);  // one refinement step (the LU's own are off)
-    last_residual_ = (b - A * x).norm() / b.norm();
+    // GMRES preconditioned by the LU of A itself: one or two iterations with
+    // double-precision factors, a few with single-precision ones (counted
+    // after the iterations of a GMRES that failed before).
+    // Single-precision factors that leave GMRES short are made again in double.
+    const int before = last_iterations_;
+    auto refined = [&] {
+      last_iterations_ = 0;
+      return gmres([&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return A * v; },
+                   [this](const Eigen::VectorXd& v) -> Eigen::VectorXd { return kept_.solve(v); }, b,
+                   prm_.restart);
+    };
+    Eigen::VectorXd x = refined();
+    int its = before + last_iterations_;
+    if (single_precision_kept && last_residual_ > prm_.tol) {
+      factorize_kept(A, true);
+      x = refined();
+      its += last_iterations_;
+    }
+    last_iterations_ = its;
     return x;
   }
 
@@ -338,7 +366,7 @@ class GmresSolver {
   DofLayout layout_, kept_layout_;
   std::vector<int> map_;  // current multiplier -> the kept LU's (-1: new)
   Eigen::Index kept_n_ = -1;
-  int kept_factorizations_ = 0;
+  int kept_factorizations_ = 0, exact_factorizations_ = 0;
   Eigen::SparseMatrix<double, Eigen::RowMajor, int> Ar_;
   Eigen::MatrixXd V_, Z_, H_;
   Eigen::VectorXd cs_, sn_, g_, h_;

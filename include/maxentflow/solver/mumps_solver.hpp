@@ -9,24 +9,53 @@
 
 #include <cstdint>
 #include <memory>
+#include <type_traits>
 #include <vector>
 
 #include <dmumps_c.h>
+#include <smumps_c.h>
 
 #include <maxentflow/core/error.hpp>
 
 namespace maxentflow {
 
-/// MUMPS multifrontal LU (unsymmetric, centralized input). Why next to
-/// UMFPACK: the kept LU of Newton's max-ent tangent (~85 nodes per row) is
+namespace detail {
+template <class Scalar>
+struct Mumps;
+template <>
+struct Mumps<double> {
+  using Struc = DMUMPS_STRUC_C;
+  static void call(Struc* id) { dmumps_c(id); }
+};
+template <>
+struct Mumps<float> {
+  using Struc = SMUMPS_STRUC_C;
+  static void call(Struc* id) { smumps_c(id); }
+};
+}  // namespace detail
+
+/// MUMPS multifrontal LU (unsymmetric, centralized input) with factors in
+/// `Scalar` (double: dmumps, float: smumps); A, b and x stay double. Why next
+/// to UMFPACK: the kept LU of Newton's max-ent tangent (~85 nodes per row) is
 /// dense-ish (fronts of 500-1700 rows), where MUMPS's dense kernels run
 /// 2-2.7x faster than UMFPACK's (E2 tangent, 1k and 4k nodes: 0.13 / 0.95 s
-/// against 0.35 / 2.0 s; docs/method.md section 8).
-class MumpsSolver {
+/// against 0.35 / 2.0 s; docs/method.md section 8). Single-precision factors
+/// halve the memory traffic of the factorization and of each solve (another
+/// 1.8-2x); they are a preconditioner, not a direct solver: x solves A x = b
+/// only to about cond(A) * 6e-8 (GmresSolver refines them).
+template <class Scalar = double>
+class BasicMumpsSolver {
+  static_assert(std::is_same_v<Scalar, double> || std::is_same_v<Scalar, float>,
+                "MUMPS factors in double or float");
+  using Api = detail::Mumps<Scalar>;
+
  public:
   using Matrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+  using Vector = Eigen::Matrix<Scalar, Eigen::Dynamic, 1>;
+  /// True when solve() is exact to round-off in double precision.
+  static constexpr bool exact = std::is_same_v<Scalar, double>;
 
-  MumpsSolver() : id_(std::make_unique<DMUMPS_STRUC_C>()) {
+  BasicMumpsSolver() : id_(std::make_unique<typename Api::Struc>()) {
     id_->comm_fortran = -987654;  // MUMPS's "no MPI communicator" (sequential library)
     id_->par = 1;
     id_->sym = 0;
@@ -34,17 +63,18 @@ class MumpsSolver {
     id_->icntl[0] = id_->icntl[1] = id_->icntl[2] = -1;  // no output
     id_->icntl[3] = 0;
   }
-  MumpsSolver(MumpsSolver&&) noexcept = default;
-  MumpsSolver& operator=(MumpsSolver&& o) noexcept {
+  BasicMumpsSolver(BasicMumpsSolver&&) noexcept = default;
+  BasicMumpsSolver& operator=(BasicMumpsSolver&& o) noexcept {
     end();
     id_ = std::move(o.id_);
     irn_ = std::move(o.irn_), jcn_ = std::move(o.jcn_), a_ = std::move(o.a_);
+    rhs_ = std::move(o.rhs_);
     factorized_ = o.factorized_;
     return *this;
   }
-  MumpsSolver(const MumpsSolver&) = delete;
-  MumpsSolver& operator=(const MumpsSolver&) = delete;
-  ~MumpsSolver() { end(); }
+  BasicMumpsSolver(const BasicMumpsSolver&) = delete;
+  BasicMumpsSolver& operator=(const BasicMumpsSolver&) = delete;
+  ~BasicMumpsSolver() { end(); }
 
   /// Symbolic analysis (ordering) of A's pattern.
   void analyze(const Matrix& A) {
@@ -58,11 +88,11 @@ class MumpsSolver {
         irn_[static_cast<std::size_t>(k)] = A.innerIndexPtr()[k] + 1;
         jcn_[static_cast<std::size_t>(k)] = j + 1;
       }
-    a_.assign(A.valuePtr(), A.valuePtr() + A.nonZeros());
     id_->n = static_cast<MUMPS_INT>(A.rows());
     id_->nnz = static_cast<MUMPS_INT8>(A.nonZeros());
     id_->irn = irn_.data();
     id_->jcn = jcn_.data();
+    a_.assign(A.valuePtr(), A.valuePtr() + A.nonZeros());  // the analysis may scale by the values
     id_->a = a_.data();
     factorized_ = false;
     call(1, "analysis");
@@ -70,11 +100,11 @@ class MumpsSolver {
   /// Numerical LU of A (the pattern analyze() saw).
   void factorize(const Matrix& A) {
     const char* where = "MumpsSolver::factorize";
-    require(A.rows() == id_->n && static_cast<std::size_t>(A.nonZeros()) == a_.size(),
+    require(A.isCompressed() && same_pattern(A),
             detail::cat("A (", A.rows(), " unknowns, ", A.nonZeros(), " nonzeros) has not the analysed pattern (",
-                        id_->n, ", ", a_.size(), ")"),
+                        id_->n, " unknowns, ", a_.size(), " nonzeros)"),
             where);
-    a_.assign(A.valuePtr(), A.valuePtr() + A.nonZeros());
+    std::copy_n(A.valuePtr(), A.nonZeros(), a_.data());  // to Scalar
     id_->a = a_.data();
     factorized_ = false;
     // The workspace MUMPS estimates in the analysis can fall short when
@@ -83,7 +113,7 @@ class MumpsSolver {
     for (int relax = 20;; relax *= 2) {
       id_->icntl[13] = relax;  // ICNTL(14): workspace relaxation, per cent
       id_->job = 2;
-      dmumps_c(id_.get());
+      Api::call(id_.get());
       const int info = id_->infog[0];
       if (info >= 0) break;
       const bool room = info == -8 || info == -9 || info == -14 || info == -15 || info == -17 || info == -20;
@@ -93,19 +123,29 @@ class MumpsSolver {
   }
   Eigen::VectorXd solve(const Eigen::VectorXd& b) const {
     require(factorized_ && b.size() == id_->n, "no factorization of this size", "MumpsSolver::solve");
-    Eigen::VectorXd x = b;
-    id_->rhs = x.data();
+    rhs_ = b.template cast<Scalar>();
+    id_->rhs = rhs_.data();
     id_->nrhs = 1;
     id_->lrhs = id_->n;
     call(3, "solve");
-    return x;
+    return rhs_.template cast<double>();
   }
-  static constexpr const char* name() { return "MUMPS"; }
+  static constexpr const char* name() { return exact ? "MUMPS" : "MUMPS (single-precision factors)"; }
 
  private:
+  // A's pattern is the analysed one (same size, nonzeros, row indices per column).
+  bool same_pattern(const Matrix& A) const {
+    if (A.rows() != id_->n || A.cols() != id_->n || static_cast<std::size_t>(A.nonZeros()) != a_.size())
+      return false;
+    for (int j = 0; j < A.outerSize(); ++j)
+      for (int k = A.outerIndexPtr()[j]; k < A.outerIndexPtr()[j + 1]; ++k)
+        if (jcn_[static_cast<std::size_t>(k)] != j + 1 || irn_[static_cast<std::size_t>(k)] != A.innerIndexPtr()[k] + 1)
+          return false;
+    return true;
+  }
   void call(int job, const char* what) const {
     id_->job = job;
-    dmumps_c(id_.get());
+    Api::call(id_.get());
     if (id_->infog[0] < 0) throw_error(what, id_->infog[0]);
   }
   [[noreturn]] void throw_error(const char* what, int info) const {
@@ -121,29 +161,77 @@ class MumpsSolver {
   void end() noexcept {
     if (!id_) return;
     id_->job = -2;
-    dmumps_c(id_.get());
+    Api::call(id_.get());
     id_.reset();
   }
 
   // MUMPS writes to its structure in every call, solves included.
-  std::unique_ptr<DMUMPS_STRUC_C> id_;
+  std::unique_ptr<typename Api::Struc> id_;
   std::vector<MUMPS_INT> irn_, jcn_;  // 1-based coordinates of A's pattern
-  std::vector<double> a_;
+  std::vector<Scalar> a_;
+  mutable Vector rhs_;
   bool factorized_ = false;
 };
 
+using MumpsSolver = BasicMumpsSolver<double>;
 static_assert(LinearSolver<MumpsSolver>);
+static_assert(LinearSolver<BasicMumpsSolver<float>>);
 
-/// The direct LU the Krylov policy keeps (GmresSolver's kept LU and fallback).
+/// An LU for a preconditioner: single-precision factors, or double ones
+/// after set_exact(true). GmresSolver asks for double only where a fresh
+/// single-precision LU of the very matrix it solves did not bring GMRES to
+/// its tolerance (precision, not age, was short): on E2 the float factors
+/// serve every solve with the same GMRES iterations, though a raw solve
+/// with them leaves backward errors up to ~1 where the matrix is
+/// ill-conditioned (GMRES absorbs those few directions).
+class MixedMumpsSolver {
+ public:
+  using Matrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+
+  void analyze(const Matrix& A) {
+    single_.analyze(A);
+    double_analyzed_ = false;
+  }
+  void factorize(const Matrix& A) {
+    use_double_ = false;
+    if (!exact_) {
+      single_.factorize(A);
+      return;
+    }
+    if (!double_analyzed_) double_.analyze(A);
+    double_analyzed_ = true;
+    double_.factorize(A);
+    use_double_ = true;
+  }
+  Eigen::VectorXd solve(const Eigen::VectorXd& b) const { return use_double_ ? double_.solve(b) : single_.solve(b); }
+  /// Double-precision factors from the next factorize() on (until set_exact(false)).
+  void set_exact(bool exact) { exact_ = exact; }
+  /// The factors in use are double precision.
+  bool exact() const { return use_double_; }
+  static constexpr const char* name() { return "MUMPS (single-precision factors, double on request)"; }
+
+ private:
+  BasicMumpsSolver<float> single_;
+  BasicMumpsSolver<double> double_;
+  bool exact_ = false, double_analyzed_ = false, use_double_ = false;
+};
+
+static_assert(LinearSolver<MixedMumpsSolver>);
+
+/// The direct LU (exact to round-off).
 using DirectSolver = MumpsSolver;
+/// The LU GmresSolver keeps as Newton's preconditioner and for its direct
+/// fallback (which GMRES refines to the solve's tolerance).
+using KeptLuSolver = MixedMumpsSolver;
 
 }  // namespace maxentflow
 
 #else
 
 namespace maxentflow {
-/// The direct LU the Krylov policy keeps (built without MUMPS: UMFPACK).
+/// The direct LU and the LU the Krylov policy keeps (built without MUMPS: UMFPACK).
 using DirectSolver = UmfpackSolver;
+using KeptLuSolver = UmfpackSolver;
 }  // namespace maxentflow
 
 #endif

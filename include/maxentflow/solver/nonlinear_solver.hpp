@@ -168,6 +168,13 @@ struct NonlinearSolverParams {
   /// costs a small part of a Newton iteration, so a tighter linear solve that
   /// saves a Newton iteration pays (E1: 2 instead of 3 per step).
   double eta_kept_lu = 1e-4;
+  /// Picard iterations of a warm-started solve also solve with GMRES
+  /// preconditioned by a kept LU, of a Picard matrix (a second one, kept as
+  /// Newton's is), instead of the linear-triangle preconditioner: a step's
+  /// Picard matrices differ little from the last step's, and with the
+  /// companion each Picard solve took ~40 GMRES iterations, 3/4 of all of
+  /// E2's (docs/method.md section 8). Solves from rest keep the companion.
+  bool kept_lu_picard = true;
   int kept_lu_max_unknowns = 20000;
   std::ostream* log = nullptr;     ///< per-iteration log
 };
@@ -195,22 +202,27 @@ class NonlinearSolver {
     SolveReport rep;
     const int n = sys.size();
     fit_start(X, n);
-    lu_made_this_solve_ = false;
-    if (skip_carry_ > 0) --skip_carry_;
+    for (auto* k : {&newton_lu_, &picard_lu_}) {
+      k->made_this_solve = false;
+      if (k->skip_carry > 0) --k->skip_carry;
+    }
     warm_start_ = sys.velocity_norm(X) > 0;
     Linearization phase = prm_.newton && prm_.newton_from_warm_start && warm_start_ ? Linearization::newton
                                                                                     : Linearization::picard;
     int fallbacks_before = 0;
-    if constexpr (SteerableKrylovSolver<Linear>) fallbacks_before = linear_.direct_fallbacks();
+    if constexpr (SteerableKrylovSolver<Linear>)
+      fallbacks_before = linear_.direct_fallbacks() + picard_linear_.direct_fallbacks();
     bool full_newton_step = false;
     double increment = std::numeric_limits<double>::infinity();
     Eigen::VectorXd R, dx;
     for (int it = 0; it < prm_.max_iterations; ++it) {
       // 1. Residual (and the matrix, unless the kept LU serves this iteration).
       const Linearization kind = phase;
-      const bool kept = use_kept_lu(sys, n) && kind == Linearization::newton;
+      const bool kept = use_kept_lu(sys, n) &&
+                        (kind == Linearization::newton || (prm_.kept_lu_picard && warm_start_));
       auto t0 = clock::now();
-      const bool assembled = !(kept && kept_lu_current(n));
+      // A Picard iteration's GMRES applies the assembled matrix.
+      const bool assembled = !(kept && kind == Linearization::newton && kept_lu_current(linear_, n));
       if (assembled)
         sys.assemble(X, kind, A_, R);
       else
@@ -227,7 +239,7 @@ class NonlinearSolver {
       int linear_its = 0;
       if (kept) {
         if constexpr (KeptLuLinearSolver<Linear> && LayoutKeyedSystem<System>)
-          dx = kept_lu_newton(sys, X, R, res, assembled, rep, linear_its);
+          dx = kept_lu_direction(sys, X, R, res, kind, assembled, rep, linear_its);
       } else if constexpr (PreconditionedLinearSolver<Linear>) {
         dx = krylov_direction(sys, X, R, res, kind, rep, linear_its);
       } else {
@@ -264,7 +276,7 @@ class NonlinearSolver {
     }
     picard_since_switch_ = 0;
     if constexpr (SteerableKrylovSolver<Linear>)
-      rep.direct_fallbacks = linear_.direct_fallbacks() - fallbacks_before;
+      rep.direct_fallbacks = linear_.direct_fallbacks() + picard_linear_.direct_fallbacks() - fallbacks_before;
     if (!rep.converged)
       throw Error(detail::cat("no convergence in ", prm_.max_iterations, " iterations (residual ",
                               rep.residual, ", increment ", rep.increment, "); history:\n", rep.log()),
@@ -393,79 +405,103 @@ class NonlinearSolver {
     if constexpr (KeptLuLinearSolver<Linear> && LayoutKeyedSystem<System>) {
       // Every iteration: a direct fallback of a Picard solve also keeps its LU.
       linear_.set_layout(sys.layout());
+      picard_linear_.set_layout(sys.layout());
       return prm_.kept_lu && n <= prm_.kept_lu_max_unknowns;
     } else {
       return false;
     }
   }
   // The kept LU can serve this iteration without a new factorization.
-  bool kept_lu_current(int n) const {
+  bool kept_lu_current(const Linear& L, int n) const {
     if constexpr (KeptLuLinearSolver<Linear>)
-      return prm_.preconditioner_refresh > 0 && linear_.kept_usable(n);
+      return prm_.preconditioner_refresh > 0 && L.kept_usable(n);
     else
       return false;
   }
 
-  // One Newton direction: GMRES on J dx = -R with J v matrix-free,
-  // preconditioned by the kept LU (made from the assembled tangent at X when
-  // there is none for this layout, or when it no longer brings GMRES below
-  // the tolerance in kept_lu_iterations).
+  // One direction: GMRES on J dx = -R, preconditioned by the kept LU of
+  // this kind (made from the matrix assembled at X when there is none for
+  // this layout, or when it no longer brings GMRES below the tolerance in
+  // kept_lu_iterations). Newton applies the tangent matrix-free; Picard
+  // applies its assembled matrix (A_).
   template <class System>
-  Eigen::VectorXd kept_lu_newton(System& sys, const Eigen::VectorXd& X, const Eigen::VectorXd& R,
-                                 double res, bool assembled, SolveReport& rep, int& linear_its) {
+  Eigen::VectorXd kept_lu_direction(System& sys, const Eigen::VectorXd& X, const Eigen::VectorXd& R,
+                                    double res, Linearization kind, bool assembled, SolveReport& rep,
+                                    int& linear_its) {
     const int n = sys.size();
-    auto refactor = [&](const char* why) {
-      if (prm_.log) *prm_.log << "  kept LU made: " << why << "\n";
+    const bool newton = kind == Linearization::newton;
+    Linear& L = newton ? linear_ : picard_linear_;
+    KeptLuState& st = newton ? newton_lu_ : picard_lu_;
+    auto refactor = [&](const char* why, bool exact = false) {
+      if (prm_.log) *prm_.log << "  kept " << (newton ? "newton" : "picard") << " LU made: " << why << "\n";
       auto t0 = clock::now();
       if (!assembled) {
         Eigen::VectorXd R2;
-        sys.assemble(X, Linearization::newton, A_, R2);
+        sys.assemble(X, kind, A_, R2);
         assembled = true;
       }
       rep.assembly_seconds += seconds(t0);
       t0 = clock::now();
-      linear_.factorize_kept(A_);
+      if constexpr (requires { L.factorize_kept(A_, true); })
+        L.factorize_kept(A_, exact);
+      else
+        L.factorize_kept(A_);
       rep.factorization_seconds += seconds(t0);
       ++rep.preconditioner_updates;
-      lu_made_this_solve_ = true;
+      st.made_this_solve = true;
     };
     bool fresh = false;
-    const bool carried = !lu_made_this_solve_;
-    if (!kept_lu_current(n)) {
-      refactor(linear_.kept_factorizations() == 0 ? "first" : "layout");
+    const bool carried = !st.made_this_solve;
+    if (!kept_lu_current(L, n)) {
+      refactor(L.kept_factorizations() == 0 ? "first" : "layout");
       fresh = true;
-    } else if (carried && skip_carry_ > 0) {
+    } else if (carried && st.skip_carry > 0) {
       refactor("carried LU failed recently");
       fresh = true;
-    } else if (lu_excess_ >= prm_.kept_lu_aged_iterations) {
+    } else if (st.excess >= prm_.kept_lu_aged_iterations) {
       refactor("aged");
       fresh = true;
     }
     const double eta = std::max(res, 0.5 * prm_.residual_tol / std::max(res, 1e-300));
-    linear_.set_tolerance(std::clamp(eta, prm_.eta_min, std::min(prm_.eta_max, prm_.eta_kept_lu)));
-    auto tangent = [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-      sys.apply_tangent(X, v, Jv_);
-      return Jv_;
+    const double cap = newton ? std::min(prm_.eta_max, prm_.eta_kept_lu) : prm_.eta_picard_warm;
+    L.set_tolerance(std::clamp(eta, prm_.eta_min, cap));
+    auto op = [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+      if (newton) {
+        sys.apply_tangent(X, v, Jv_);
+        return Jv_;
+      }
+      return A_ * v;
     };
-    const int cap = prm_.kept_lu_iterations;
+    const int max_its = prm_.kept_lu_iterations;
     auto t0 = clock::now();
-    Eigen::VectorXd dx = linear_.solve_kept(tangent, -R, cap);
-    linear_its = linear_.last_iterations();
-    if (!linear_.converged() && !fresh) {
+    Eigen::VectorXd dx = L.solve_kept(op, -R, max_its);
+    linear_its = L.last_iterations();
+    if (!L.converged() && !fresh) {
       rep.solve_seconds += seconds(t0);
-      if (carried) skip_carry_ = prm_.kept_lu_skip_carry + 1;  // counted down at each solve's start
+      if (carried) st.skip_carry = prm_.kept_lu_skip_carry + 1;  // counted down at each solve's start
       refactor("slow GMRES");
       fresh = true;
       t0 = clock::now();
-      dx = linear_.solve_kept(tangent, -R, cap);
-      linear_its += linear_.last_iterations();
+      dx = L.solve_kept(op, -R, max_its);
+      linear_its += L.last_iterations();
+    }
+    // A fresh LU of this very matrix that leaves GMRES short: its
+    // single-precision factors are (an ill-conditioned matrix), not its age.
+    if constexpr (requires { Linear::single_precision_kept; }) {
+      if (Linear::single_precision_kept && !L.converged()) {
+        rep.solve_seconds += seconds(t0);
+        refactor("single precision short", true);
+        t0 = clock::now();
+        dx = L.solve_kept(op, -R, max_its);
+        linear_its += L.last_iterations();
+      }
     }
     // The LU's age: iterations beyond those of its first solve.
     if (fresh) {
-      lu_fresh_its_ = linear_.last_iterations();
-      lu_excess_ = 0;
+      st.fresh_its = L.last_iterations();
+      st.excess = 0;
     } else {
-      lu_excess_ += std::max(0, linear_.last_iterations() - lu_fresh_its_);
+      st.excess += std::max(0, L.last_iterations() - st.fresh_its);
     }
     rep.solve_seconds += seconds(t0);
     rep.linear_iterations += linear_its;
@@ -475,16 +511,20 @@ class NonlinearSolver {
 
   params prm_;
   Linear linear_;
+  Linear picard_linear_;  // holds the kept Picard LU (kept_lu_picard)
   Matrix A_, P_;
   Eigen::VectorXd Jv_, Xtry_, Rtry_;
   long analyzed_generation_ = -1;
   int analyzed_size_ = -1;
   int picard_since_switch_ = 0;
   bool warm_start_ = false;  // this solve's X came in with a velocity
-  // The kept LU's history: made in the current solve(); solves left that make
+  // A kept LU's history: made in the current solve(); solves left that make
   // their own at once; its first solve's iterations and the excess since.
-  bool lu_made_this_solve_ = false;
-  int skip_carry_ = 0, lu_fresh_its_ = 0, lu_excess_ = 0;
+  struct KeptLuState {
+    bool made_this_solve = false;
+    int skip_carry = 0, fresh_its = 0, excess = 0;
+  };
+  KeptLuState newton_lu_, picard_lu_;
   double rate_ = 0.0, fresh_rate_ = -1.0;  // Krylov iterations per decade: last, after the last refresh
 };
 
