@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include <Eigen/SparseLU>
@@ -591,17 +592,30 @@ TEST_CASE("the Krylov preconditioner is kept while it works, with the same solut
   CHECK((X_every - X_kept).lpNorm<Eigen::Infinity>() <= 1e-7 * X_every.lpNorm<Eigen::Infinity>());
 }
 
-TEST_CASE("a warm-started solve's Picard iterations solve to eta_picard_warm: same solution, fewer Krylov iterations",
-          "[flow][solver][gmres]") {
+namespace {
+// The sticking block's solution from rest, and a start a few per cent off
+// it, as a time step's predictor is.
+std::pair<Eigen::VectorXd, Eigen::VectorXd> rest_and_warm_start() {
   Eigen::VectorXd X_rest;
-  {
-    auto P = compression(0.2);
-    NonlinearSolver<GmresSolver<>> s;
-    REQUIRE(s.solve(*P.system, X_rest).converged);
-  }
-  // A start a few per cent off the solution, as a time step's predictor is.
+  auto P = compression(0.2);
+  NonlinearSolver<GmresSolver<>> s;
+  REQUIRE(s.solve(*P.system, X_rest).converged);
   Eigen::VectorXd start = X_rest;
   for (Eigen::Index i = 0; i < start.size(); ++i) start[i] *= 1.0 + 0.05 * std::sin(0.37 * static_cast<double>(i));
+  return {X_rest, start};
+}
+int picard_linear_iterations(const SolveReport& r) {
+  int its = 0;
+  for (const auto& h : r.history)
+    if (h.kind == Linearization::picard) its += h.linear_iterations;
+  return its;
+}
+}  // namespace
+
+TEST_CASE("a warm-started solve's Picard iterations solve to eta_picard_warm: same solution, fewer Krylov iterations",
+          "[flow][solver][gmres]") {
+  const auto rest_warm = rest_and_warm_start();
+  const Eigen::VectorXd &X_rest = rest_warm.first, &start = rest_warm.second;
   auto warm = [&](double eta_warm, Eigen::VectorXd& X) {
     auto P = compression(0.2);
     NonlinearSolverParams prm;
@@ -618,12 +632,7 @@ TEST_CASE("a warm-started solve's Picard iterations solve to eta_picard_warm: sa
   REQUIRE(tight.converged);
   REQUIRE(loose.converged);
   REQUIRE(tight.picard >= 2);
-  int picard_its_tight = 0, picard_its_loose = 0;
-  for (const auto& h : tight.history)
-    if (h.kind == Linearization::picard) picard_its_tight += h.linear_iterations;
-  for (const auto& h : loose.history)
-    if (h.kind == Linearization::picard) picard_its_loose += h.linear_iterations;
-  CHECK(picard_its_loose < picard_its_tight);
+  CHECK(picard_linear_iterations(loose) < picard_linear_iterations(tight));
   CHECK((X_loose - X_tight).lpNorm<Eigen::Infinity>() <= 1e-6 * X_tight.lpNorm<Eigen::Infinity>());
   CHECK((X_loose - X_rest).lpNorm<Eigen::Infinity>() <= 1e-6 * X_rest.lpNorm<Eigen::Infinity>());
 }
@@ -631,14 +640,8 @@ TEST_CASE("a warm-started solve's Picard iterations solve to eta_picard_warm: sa
 TEST_CASE("a warm-started solve's Picard iterations solve with a kept Picard LU: same solution, fewer Krylov "
           "iterations than with the linear-triangle companion",
           "[flow][solver][gmres]") {
-  Eigen::VectorXd X_rest;
-  {
-    auto P = compression(0.2);
-    NonlinearSolver<GmresSolver<>> s;
-    REQUIRE(s.solve(*P.system, X_rest).converged);
-  }
-  Eigen::VectorXd start = X_rest;
-  for (Eigen::Index i = 0; i < start.size(); ++i) start[i] *= 1.0 + 0.05 * std::sin(0.37 * static_cast<double>(i));
+  const auto rest_warm = rest_and_warm_start();
+  const Eigen::VectorXd &X_rest = rest_warm.first, &start = rest_warm.second;
   auto warm = [&](bool kept_picard, Eigen::VectorXd& X) {
     auto P = compression(0.2);
     NonlinearSolverParams prm;
@@ -659,12 +662,7 @@ TEST_CASE("a warm-started solve's Picard iterations solve with a kept Picard LU:
   REQUIRE(kept.converged);
   REQUIRE(companion.converged);
   REQUIRE(kept.picard >= 2);
-  int picard_its_kept = 0, picard_its_companion = 0;
-  for (const auto& h : kept.history)
-    if (h.kind == Linearization::picard) picard_its_kept += h.linear_iterations;
-  for (const auto& h : companion.history)
-    if (h.kind == Linearization::picard) picard_its_companion += h.linear_iterations;
-  CHECK(2 * picard_its_kept < picard_its_companion);
+  CHECK(2 * picard_linear_iterations(kept) < picard_linear_iterations(companion));
   CHECK(kept.direct_fallbacks == 0);
   CHECK((X_kept - X_companion).lpNorm<Eigen::Infinity>() <= 1e-6 * X_companion.lpNorm<Eigen::Infinity>());
   CHECK((X_kept - X_rest).lpNorm<Eigen::Infinity>() <= 1e-6 * X_rest.lpNorm<Eigen::Infinity>());

@@ -337,9 +337,9 @@ class GmresSolver {
     factorize_kept(A);
     frozen_ = true;
     // GMRES preconditioned by the LU of A itself: one or two iterations with
-    // double-precision factors, a few with single-precision ones (counted
-    // after the iterations of a GMRES that failed before).
-    // Single-precision factors that leave GMRES short are made again in double.
+    // double-precision factors, a few with single-precision ones, which are
+    // made again in double if they leave GMRES short. The iterations count
+    // on from those of a GMRES that failed before.
     const int before = last_iterations_;
     auto refined = [&] {
       last_iterations_ = 0;
