@@ -263,6 +263,41 @@ TEST_CASE("contact: an inclined plate does not penetrate the billet", "[stepper]
   CHECK(p.force_y > 0);  // the billet pushes the plate up
 }
 
+TEST_CASE("contact: a node at a tool's end that the velocity guess moves off starts free; one on the face "
+          "or rounding the end stays",
+          "[stepper][contact]") {
+  const Eigen::Matrix2Xd x = block_nodes(6, 6, 5, 5, false);  // [0, 5]^2, h = 1
+  const IntegrationMesh<> mesh(x);
+  auto node = [&](double px, double py) {
+    for (Eigen::Index k = 0; k < x.cols(); ++k)
+      if ((x.col(k) - Eigen::Vector2d(px, py)).norm() < 1e-12) return static_cast<int>(k);
+    return -1;
+  };
+  // A plate on the top over x in [0, 5]: (5, 5) sits on its open end, as a
+  // node on a die land's exit; (3, 5) on its face.
+  const RigidTool plate = flat_plate("land", {2.5, 5}, {0, -1}, 2.5);
+  const int end = node(5, 5), face = node(3, 5);
+  const double dt = 0.1;
+  auto active = [&](ToolContact::params prm, const Eigen::Vector2d& move_end) {
+    Eigen::Matrix2Xd v = Eigen::Matrix2Xd::Zero(2, x.cols());
+    v.col(end) = move_end / dt;
+    v.col(face) = Eigen::Vector2d(0.3, -0.3) / dt;  // off the face by 0.3 h
+    ToolContact c(prm);
+    c.detect(mesh, plate, v, dt);
+    std::vector<int> on;
+    for (const auto& p : c.points())
+      if (p.active) on.push_back(p.node);
+    return std::make_pair(std::count(on.begin(), on.end(), end) == 1, std::count(on.begin(), on.end(), face) == 1);
+  };
+  const ToolContact::params prm;
+  REQUIRE(prm.leave_tol == 0.1);
+  CHECK(active(prm, {0.3, -0.3}) == std::make_pair(false, true));   // leaves by 0.42 h
+  CHECK(active(prm, {0.06, -0.06}) == std::make_pair(true, true));  // 0.085 h: the multiplier decides
+  ToolContact::params keep = prm;
+  keep.leave_tol = 1e9;  // the rule off: in contact as its gap says
+  CHECK(active(keep, {0.3, -0.3}) == std::make_pair(true, true));
+}
+
 TEST_CASE("contact: a cornered punch indents without penetration; the free top stays free",
           "[stepper][contact]") {
   // A square punch over x in [-1, 3] (the symmetry line at x = 0) on a billet 8 wide.

@@ -49,6 +49,14 @@ class ToolContact {
     /// forever. The small penetration it may keep is closed at the next step
     /// (the -g/dt term) and stays far inside StepperParams::penetration_tol.
     double reentry_tol = 1e-3;
+    /// A node at a tool corner or open end that the velocity guess moves more
+    /// than leave_tol * h_a away from the tool during the step starts it free.
+    /// Material leaving a die land's exit would otherwise start each such
+    /// step in contact there (gap 0), come out tensile and cost an active-set
+    /// re-solve: a fifth of E2's nonlinear iterations (docs/method.md section
+    /// 8). A node that rounds a die corner moves off by far less (E2: 0.02 h)
+    /// and stays for its multiplier to decide.
+    double leave_tol = 0.1;
   };
 
   ToolContact() = default;
@@ -57,7 +65,8 @@ class ToolContact {
 
   /// Projects every boundary node onto the tool; active: within the gap
   /// tolerance, or predicted to penetrate during dt with the velocity guess
-  /// v_guess (2 x N, e.g. the previous step's nodal velocity; may be empty).
+  /// v_guess (2 x N, e.g. the previous step's nodal velocity; may be empty),
+  /// unless at a tool corner and predicted to leave it (params::leave_tol).
   void detect(const Mesh& mesh, const RigidTool& tool, const Eigen::Matrix2Xd& v_guess, double dt) {
     points_.clear();
     const auto& x = mesh.nodes();
@@ -73,6 +82,7 @@ class ToolContact {
       c.active = g <= prm_.gap_tol * h(a) || g_end < 0.0;
       // A node far from the tool (beyond a few h) cannot be reached in one step.
       if (c.projection.distance > 10.0 * h(a) && g > 0) c.active = false;
+      if (c.projection.at_corner && g_end > prm_.leave_tol * h(a)) c.active = false;
       points_.push_back(c);
     }
     std::map<int, int> index;  // node -> position in points_
