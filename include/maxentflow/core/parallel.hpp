@@ -1,5 +1,12 @@
-// maxentflow: thread control for the OpenMP loops (serial without OpenMP).
+// maxentflow: thread control for the OpenMP loops (serial without OpenMP),
+// and the parallel sparse product the Krylov solves use.
 #pragma once
+
+#include <algorithm>
+#include <array>
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
 
 #if defined(_OPENMP)
 #include <omp.h>
@@ -41,6 +48,53 @@ inline int team_size() {
 #else
   return 1;
 #endif
+}
+
+/// y = A v for a column-major sparse A, in parallel, with the same result for
+/// any thread count: the columns are cut into `column_product_chunks` ranges
+/// of about equal nonzeros, each range's product goes to its own column of
+/// `part` (n x chunks, reused storage), and the columns are added in order.
+/// Eigen runs only row-major products in parallel, and a row-major copy of
+/// a wide max-ent matrix would hold as much memory as the matrix itself.
+inline constexpr int column_product_chunks = 4;
+template <class Scalar, class StorageIndex>
+void column_product(const Eigen::SparseMatrix<Scalar, Eigen::ColMajor, StorageIndex>& A,
+                    const Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& v, Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& y,
+                    Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic>& part) {
+  using Index = Eigen::Index;
+  constexpr int K = column_product_chunks;
+  const Index n = A.rows(), m = A.cols();
+  std::array<Index, K + 1> first{};
+  first[K] = m;
+  for (int k = 1; k < K; ++k) {
+    if (A.isCompressed()) {
+      const StorageIndex* outer = A.outerIndexPtr();
+      const auto target = static_cast<StorageIndex>(static_cast<double>(A.nonZeros()) * k / K);
+      first[static_cast<std::size_t>(k)] = std::lower_bound(outer, outer + m + 1, target) - outer;
+    } else {
+      first[static_cast<std::size_t>(k)] = m * k / K;
+    }
+    first[static_cast<std::size_t>(k)] =
+        std::clamp(first[static_cast<std::size_t>(k)], first[static_cast<std::size_t>(k) - 1], m);
+  }
+  part.resize(n, K);
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < K; ++k) {
+    auto out = part.col(k);
+    out.setZero();
+    for (Index j = first[static_cast<std::size_t>(k)]; j < first[static_cast<std::size_t>(k) + 1]; ++j) {
+      const Scalar vj = v[j];
+      for (typename Eigen::SparseMatrix<Scalar, Eigen::ColMajor, StorageIndex>::InnerIterator it(A, j); it; ++it)
+        out[it.row()] += it.value() * vj;
+    }
+  }
+  y.resize(n);
+#pragma omp parallel for schedule(static)
+  for (Index i = 0; i < n; ++i) {
+    Scalar s = part(i, 0);
+    for (int k = 1; k < K; ++k) s += part(i, k);
+    y[i] = s;
+  }
 }
 
 }  // namespace maxentflow

@@ -15,6 +15,7 @@
 #include <Eigen/SparseCore>
 
 #include <maxentflow/core/dof_layout.hpp>
+#include <maxentflow/core/parallel.hpp>
 #include <maxentflow/core/error.hpp>
 #include <maxentflow/solver/linear_solver.hpp>
 #include <maxentflow/solver/mumps_solver.hpp>
@@ -127,9 +128,8 @@ class GmresSolver {
     // After a fallback this structure's solves use the LU of that earlier A:
     // Newton's next matrices differ little from it, so GMRES needs a few
     // iterations where the linear-triangle preconditioner needed hundreds.
-    Ar_ = A;  // row-major: the product is parallel (OpenMP) in Eigen
     const int max_iterations = allow_fallback ? prm_.max_iterations : std::min(prm_.max_iterations, prm_.restart);
-    Eigen::VectorXd x = gmres([&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return Ar_ * v; },
+    Eigen::VectorXd x = gmres([&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return product(A, v); },
                               [this](const Eigen::VectorXd& v) -> Eigen::VectorXd {
                                 return frozen_ ? kept_.solve(v) : M_.solve(v);
                               },
@@ -140,6 +140,13 @@ class GmresSolver {
                         last_residual_, ")"),
             where);
     return direct(A, b);
+  }
+
+  /// A v in parallel, the same for any thread count (column_product).
+  Eigen::VectorXd product(const Matrix& A, const Eigen::VectorXd& v) {
+    Eigen::VectorXd y;
+    column_product(A, v, y, product_part_);
+    return y;
   }
 
   // The kept LU: a direct factorization of a full system matrix (Newton's
@@ -343,7 +350,7 @@ class GmresSolver {
     const int before = last_iterations_;
     auto refined = [&] {
       last_iterations_ = 0;
-      return gmres([&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return A * v; },
+      return gmres([&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return product(A, v); },
                    [this](const Eigen::VectorXd& v) -> Eigen::VectorXd { return kept_.solve(v); }, b,
                    prm_.restart);
     };
@@ -367,7 +374,7 @@ class GmresSolver {
   std::vector<int> map_;  // current multiplier -> the kept LU's (-1: new)
   Eigen::Index kept_n_ = -1;
   int kept_factorizations_ = 0, exact_factorizations_ = 0;
-  Eigen::SparseMatrix<double, Eigen::RowMajor, int> Ar_;
+  Eigen::MatrixXd product_part_;  // column_product's storage
   Eigen::MatrixXd V_, Z_, H_;
   Eigen::VectorXd cs_, sn_, g_, h_;
   int last_iterations_ = 0, direct_fallbacks_ = 0;

@@ -20,6 +20,7 @@
 #include <maxentflow/core/dof_layout.hpp>
 #include <maxentflow/core/error.hpp>
 #include <maxentflow/core/linearization.hpp>
+#include <maxentflow/core/parallel.hpp>
 #include <maxentflow/solver/krylov_solver.hpp>
 #include <maxentflow/solver/linear_solver.hpp>
 
@@ -470,7 +471,8 @@ class NonlinearSolver {
         sys.apply_tangent(X, v, Jv_);
         return Jv_;
       }
-      return A_ * v;
+      column_product(A_, v, Av_, product_part_);
+      return Av_;
     };
     const int max_its = prm_.kept_lu_iterations;
     auto t0 = clock::now();
@@ -513,7 +515,8 @@ class NonlinearSolver {
   Linear linear_;
   Linear picard_linear_;  // holds the kept Picard LU (kept_lu_picard)
   Matrix A_, P_;
-  Eigen::VectorXd Jv_, Xtry_, Rtry_;
+  Eigen::VectorXd Jv_, Av_, Xtry_, Rtry_;
+  Eigen::MatrixXd product_part_;  // column_product's storage
   long analyzed_generation_ = -1;
   int analyzed_size_ = -1;
   int picard_since_switch_ = 0;
