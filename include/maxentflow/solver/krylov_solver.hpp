@@ -15,8 +15,8 @@
 #include <Eigen/SparseCore>
 
 #include <maxentflow/core/dof_layout.hpp>
-#include <maxentflow/core/parallel.hpp>
 #include <maxentflow/core/error.hpp>
+#include <maxentflow/core/parallel.hpp>
 #include <maxentflow/solver/linear_solver.hpp>
 #include <maxentflow/solver/mumps_solver.hpp>
 
