@@ -145,6 +145,7 @@ TEST_CASE("bad stepper input is refused with an Error naming what and where", "[
       {"penetration_tol", [&](StepperParams& p) { p.penetration_tol = inf; }},
       {"snap_tol", [&](StepperParams& p) { p.snap_tol = -0.1; }},
       {"contact.release_tol", [&](StepperParams& p) { p.contact.release_tol = nan; }},
+      {"contact.leave_tol", [&](StepperParams& p) { p.contact.leave_tol = -0.1; }},
       {"solver.velocity_tol", [&](StepperParams& p) { p.solver.velocity_tol = 0; }},
       {"solver.max_iterations", [&](StepperParams& p) { p.solver.max_iterations = 0; }},
   };

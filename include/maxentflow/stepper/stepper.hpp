@@ -110,6 +110,7 @@ struct StepperParams {
     non_negative(contact.gap_tol, "contact.gap_tol");
     non_negative(contact.release_tol, "contact.release_tol");
     non_negative(contact.reentry_tol, "contact.reentry_tol");
+    non_negative(contact.leave_tol, "contact.leave_tol");
     positive(solver.velocity_tol, "solver.velocity_tol");
     positive(solver.residual_tol, "solver.residual_tol");
     require(solver.max_iterations >= 1, detail::cat("solver.max_iterations must be >= 1, got ", solver.max_iterations),
