@@ -14,6 +14,7 @@
 #include <Eigen/LU>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <exception>
 #include <limits>
@@ -295,11 +296,11 @@ class MaxEntBasis {
     // Coincident nodes: any two closer than 1e-10 of their spacing.
     for (Eigen::Index a = 0; a < N; ++a) {
       const Point xa = nodes_.col(a);
-      for (const auto& e : grid_.candidates(grid_.cell_of(xa))) {
-        if (e.node >= a) break;  // candidates ascend
-        const double tol = 1e-10 * std::min(h_(a), e.h);
-        if ((nodes_.col(e.node) - xa).squaredNorm() <= tol * tol)
-          throw Error(detail::cat("coincident nodes ", e.node, " and ", a), where_node(a));
+      const auto cand = grid_.candidates(grid_.cell_of(xa));
+      for (int i = 0; i < cand.size && cand.node[i] < a; ++i) {  // candidates ascend
+        const double tol = 1e-10 * std::min(h_(a), cand.h[i]);
+        if ((nodes_.col(cand.node[i]) - xa).squaredNorm() <= tol * tol)
+          throw Error(detail::cat("coincident nodes ", cand.node[i], " and ", a), where_node(a));
       }
     }
   }
@@ -340,28 +341,48 @@ class MaxEntBasis {
 
   int support_size(const Point& x) const {
     if (!x.allFinite()) return 0;
+    const auto c = grid_.candidates(grid_.cell_of(x));
     int m = 0;
-    for (const auto& e : grid_.candidates(grid_.cell_of(x))) {
+#pragma omp simd reduction(+ : m)
+    for (int i = 0; i < c.size; ++i) {
       double d2 = 0;
-      for (int k = 0; k < Dim; ++k) d2 += (x(k) - e.x[k]) * (x(k) - e.x[k]);
-      m += d2 <= e.r2;
+      for (int k = 0; k < Dim; ++k) d2 += (x(k) - c.x[k][i]) * (x(k) - c.x[k][i]);
+      m += d2 <= c.r2[i] ? 1 : 0;
     }
     return m;
   }
 
-  // Support of x: candidates of its cell within their radius (ascending).
+  // Support of x: candidates of its cell within their radius (ascending). First
+  // the indices of the candidates inside, with no branch (about a third are, in
+  // a pattern the branch predictor misses), then their data.
   int gather(const Point& x, int cell, Workspace& ws) const {
-    const auto cand = grid_.candidates(cell);
-    ws.dual.reserve(static_cast<Eigen::Index>(cand.size()));
-    ws.support.resize(cand.size());
-    double h_ref = std::numeric_limits<double>::infinity(), d_near = h_ref;
+    const auto c = grid_.candidates(cell);
+    ws.dual.reserve(c.size);
+    ws.support.resize(static_cast<std::size_t>(c.size));
+    int* node = ws.support.data();  // candidate positions first, node indices after
     int m = 0;
-    for (const auto& e : cand) {
+    for (int i = 0; i < c.size; ++i) {
       double d2 = 0;
-      for (int k = 0; k < Dim; ++k) d2 += (x(k) - e.x[k]) * (x(k) - e.x[k]);
-      if (!(d2 <= e.r2)) continue;
-      ws.support[static_cast<std::size_t>(m)] = e.node;
-      load(ws, m++, x, e.x, e.beta, e.h, h_ref, d_near);
+      for (int k = 0; k < Dim; ++k) d2 += (x(k) - c.x[k][i]) * (x(k) - c.x[k][i]);
+      node[m] = i;
+      m += d2 <= c.r2[i] ? 1 : 0;
+    }
+    double h_ref = std::numeric_limits<double>::infinity(), d_near = h_ref;
+    for (int j = 0; j < m; ++j) {
+      const int i = node[j];
+      double d2 = 0;
+      for (int k = 0; k < Dim; ++k) {
+        const double d = x(k) - c.x[k][i];
+        ws.dual.dx[k](j) = d;
+        d2 += d * d;
+      }
+      ws.dual.beta(j) = c.beta[i];
+      ws.dual.q(j) = -c.beta[i] * d2;  // the prior's exponent
+      node[j] = c.node[i];
+      if (d2 < d_near) {  // the nearest node's spacing scales the tolerances
+        d_near = d2;
+        h_ref = c.h[i];
+      }
     }
     ws.support.resize(static_cast<std::size_t>(m));
     ws.last_h_ref = std::isfinite(h_ref) ? h_ref : h_min_;

@@ -26,13 +26,15 @@ class SupportGrid {
  public:
   using Point = Eigen::Matrix<double, D, 1>;
   enum class Cell : std::uint8_t { interior, boundary, exterior };
-  /// A node as a cell sees it: packed so a query streams through memory.
-  struct Entry {
-    double x[D];
-    double r2;    // support radius squared
-    double beta;
-    double h;
-    int node;
+  /// The nodes a cell sees, as parallel arrays (a query's distance filter runs
+  /// over them in SIMD lanes): coordinates, support radius squared, beta, h, index.
+  struct Candidates {
+    std::array<const double*, D> x;
+    const double* r2;
+    const double* beta;
+    const double* h;
+    const int* node;
+    int size;
   };
 
   SupportGrid() = default;
@@ -76,23 +78,28 @@ class SupportGrid {
       std::vector<int> fill;
       if (pass == 1) {
         for (int c = 0; c < total_; ++c) start_[c + 1] += start_[c];
-        entries_.resize(static_cast<std::size_t>(start_[total_]));
+        const auto n = static_cast<std::size_t>(start_[total_]);
+        for (auto& v : x_) v.resize(n);
+        r2_.resize(n);
+        beta_.resize(n);
+        h_.resize(n);
+        node_.resize(n);
         fill.assign(start_.begin(), start_.end() - 1);
       }
       for (Eigen::Index a = 0; a < N; ++a) {
         std::array<int, D> first, last;
         box_cells(nodes.col(a), radius(a), first, last);
-        Entry e;
-        for (int k = 0; k < D; ++k) e.x[k] = nodes(k, a);
-        e.r2 = radius(a) * radius(a);
-        e.beta = beta(a);
-        e.h = h(a);
-        e.node = static_cast<int>(a);
         for_each_cell(first, last, [&](int c) {
-          if (pass == 0)
+          if (pass == 0) {
             ++start_[c + 1];
-          else
-            entries_[static_cast<std::size_t>(fill[c]++)] = e;
+            return;
+          }
+          const auto i = static_cast<std::size_t>(fill[c]++);
+          for (int k = 0; k < D; ++k) x_[k][i] = nodes(k, a);
+          r2_[i] = radius(a) * radius(a);
+          beta_[i] = beta(a);
+          h_[i] = h(a);
+          node_[i] = static_cast<int>(a);
         });
       }
     }
@@ -111,8 +118,16 @@ class SupportGrid {
 
   /// Nodes whose support box overlaps cell c (a superset of the support of any x
   /// in c), ascending.
-  std::span<const Entry> candidates(int c) const {
-    return {entries_.data() + start_[c], static_cast<std::size_t>(start_[c + 1] - start_[c])};
+  Candidates candidates(int c) const {
+    const auto i = static_cast<std::size_t>(start_[c]);
+    Candidates out;
+    for (int k = 0; k < D; ++k) out.x[k] = x_[k].data() + i;
+    out.r2 = r2_.data() + i;
+    out.beta = beta_.data() + i;
+    out.h = h_.data() + i;
+    out.node = node_.data() + i;
+    out.size = start_[c + 1] - start_[c];
+    return out;
   }
 
   Cell status(int c) const { return status_[static_cast<std::size_t>(c)]; }
@@ -130,7 +145,7 @@ class SupportGrid {
 
   int cell_count() const { return total_; }
   double cell_size() const { return size_; }
-  std::size_t registrations() const { return entries_.size(); }
+  std::size_t registrations() const { return node_.size(); }
 
  private:
   void box_cells(const Point& x, double r, std::array<int, D>& first, std::array<int, D>& last) const {
@@ -227,7 +242,9 @@ class SupportGrid {
   std::array<int, D> n_{}, stride_{};
   int total_ = 0;
   std::vector<int> start_;
-  std::vector<Entry> entries_;
+  std::array<std::vector<double>, D> x_;
+  std::vector<double> r2_, beta_, h_;
+  std::vector<int> node_;
   std::vector<Cell> status_;
   std::vector<int> facet_start_, facet_entries_;
 };
