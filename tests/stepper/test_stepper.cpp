@@ -314,6 +314,45 @@ TEST_CASE("contact: a cornered punch indents without penetration; the free top s
   CHECK(p.force_y > 0);
 }
 
+TEST_CASE("contact: the active set checked on a loose solve first ends where full solves end, in fewer "
+          "iterations",
+          "[stepper][contact]") {
+  // The cornered punch: its corner node is released and the set changes.
+  auto run = [](double active_set_tol) {
+    StepperParams prm;
+    prm.geometry = Geometry::plane_strain;
+    prm.dt = 0.5;
+    prm.active_set_tol = active_set_tol;
+    Stepper<NortonHoff> s(block_nodes(9, 7, 8, 6, false), NortonHoff(150.0, 0.2, 1e-7), prm);
+    s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100));
+    RigidTool punch = rectangle("punch", {-1, 6}, {3, 9});
+    punch.set_velocity({0, -0.1});
+    s.add_tool(std::move(punch));
+    s.add_velocity_condition({"symmetry", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+    struct Run {
+      std::vector<double> force;
+      std::vector<std::vector<int>> contact;
+      int iterations = 0, passes = 0;
+    } out;
+    for (int k = 0; k < 4; ++k) {
+      const auto& r = s.step();
+      out.force.push_back(r.tool_force[1].y());
+      out.contact.push_back(s.contact_flags());
+      out.iterations += r.picard + r.newton;
+      out.passes += r.active_set_iterations;
+    }
+    return out;
+  };
+  REQUIRE(StepperParams{}.active_set_tol == 1e-2);
+  const auto loose = run(1e-2), full = run(0.0);
+  REQUIRE(full.passes > 4);  // the set changed in some step
+  CHECK(loose.passes == full.passes);
+  CHECK(loose.contact == full.contact);
+  for (std::size_t k = 0; k < full.force.size(); ++k)
+    CHECK(std::abs(loose.force[k] - full.force[k]) <= 1e-9 * std::abs(full.force[k]));
+  CHECK(loose.iterations < full.iterations);
+}
+
 TEST_CASE("a step that cannot be done throws and leaves the state of its start",
           "[stepper]") {
   StepperParams prm;

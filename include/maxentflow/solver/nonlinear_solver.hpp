@@ -200,16 +200,34 @@ class NonlinearSolver {
   /// fine: the first Picard iteration is then a Newtonian solve).
   template <NonlinearSystem System>
   SolveReport solve(System& sys, Eigen::VectorXd& X) {
+    return solve(sys, X, false);
+  }
+
+  /// Continues the last solve, on the same system and from its result X, to
+  /// tolerances set since (parameters()): Newton from the first iteration, and
+  /// the LUs that solve made count as this one's (they are of these very
+  /// systems). For a solve first taken only as far as a decision needs (the
+  /// stepper's contact active set), then finished.
+  template <NonlinearSystem System>
+  SolveReport resume(System& sys, Eigen::VectorXd& X) {
+    return solve(sys, X, true);
+  }
+
+ private:
+  template <NonlinearSystem System>
+  SolveReport solve(System& sys, Eigen::VectorXd& X, bool resume) {
     SolveReport rep;
     const int n = sys.size();
     fit_start(X, n);
-    for (auto* k : {&newton_lu_, &picard_lu_}) {
-      k->made_this_solve = false;
-      if (k->skip_carry > 0) --k->skip_carry;
-    }
+    if (!resume)
+      for (auto* k : {&newton_lu_, &picard_lu_}) {
+        k->made_this_solve = false;
+        if (k->skip_carry > 0) --k->skip_carry;
+      }
     warm_start_ = sys.velocity_norm(X) > 0;
-    Linearization phase = prm_.newton && prm_.newton_from_warm_start && warm_start_ ? Linearization::newton
-                                                                                    : Linearization::picard;
+    Linearization phase =
+        prm_.newton && ((prm_.newton_from_warm_start && warm_start_) || resume) ? Linearization::newton
+                                                                                 : Linearization::picard;
     int fallbacks_before = 0;
     if constexpr (SteerableKrylovSolver<Linear>)
       fallbacks_before = linear_.direct_fallbacks() + picard_linear_.direct_fallbacks();
@@ -285,7 +303,6 @@ class NonlinearSolver {
     return rep;
   }
 
- private:
   using clock = std::chrono::steady_clock;
   // A start of another size: cut, or padded with zeros.
   static void fit_start(Eigen::VectorXd& X, int n) {

@@ -72,6 +72,12 @@ struct StepperParams {
   NonlinearSolverParams solver;
   ToolContact::params contact;
   int max_active_set_iterations = 12;
+  /// The contact active set is first checked on a solve converged only to this
+  /// (relative velocity increment and residual); the solve is finished to the
+  /// solver's tolerances once the set holds there, and checked again. Solves
+  /// that an active-set change throws away then cost a few Newton iterations,
+  /// not a whole solve. 0: every check on a fully converged solve.
+  double active_set_tol = 1e-2;
   int max_retries = 4;          ///< dt halvings before a failed step stops the run (HalvingRetry)
   /// A node deeper than this * h in a tool fails the step. h here and in
   /// snap_tol is max(h_a, mean h): nodes crowding into a die corner get a
@@ -111,6 +117,7 @@ struct StepperParams {
     non_negative(contact.release_tol, "contact.release_tol");
     non_negative(contact.reentry_tol, "contact.reentry_tol");
     non_negative(contact.leave_tol, "contact.leave_tol");
+    non_negative(active_set_tol, "active_set_tol");
     positive(solver.velocity_tol, "solver.velocity_tol");
     positive(solver.residual_tol, "solver.residual_tol");
     require(solver.max_iterations >= 1, detail::cat("solver.max_iterations must be >= 1, got ", solver.max_iterations),
@@ -539,11 +546,22 @@ class Stepper {
       X = Eigen::VectorXd::Zero(sys.size());
       X.head(nf) = start;
       contact_.warm_start(cs, X, nf);
-      add_report(solver_->solve(sys, X), rec);
-      contact_.remember(cs, X, nf);
-      nodal_velocity(cfg.at_nodes, X, v);
-      // Free nodes are checked against the tools with the move they will make.
-      const int changes = contact_.update(cs, X, N, x_, move_velocity(v, fields_[k_.velocity], ratio), dt);
+      // A loose solve first (active_set_tol); once the set holds on it, the
+      // same rows are solved on to the solver's tolerances and checked again.
+      const bool loose = contact_.size() > 0 &&
+                         prm_.active_set_tol > std::max(prm_.solver.velocity_tol, prm_.solver.residual_tol);
+      int changes = 0;
+      for (int pass = loose ? 0 : 1; pass < 2; ++pass) {
+        solver_->parameters().velocity_tol = pass == 0 ? prm_.active_set_tol : prm_.solver.velocity_tol;
+        solver_->parameters().residual_tol = pass == 0 ? prm_.active_set_tol : prm_.solver.residual_tol;
+        add_report(pass == 0 || !loose ? solver_->solve(sys, X) : solver_->resume(sys, X), rec);
+        contact_.remember(cs, X, nf);
+        nodal_velocity(cfg.at_nodes, X, v);
+        // Free nodes are checked against the tools with the move they will make.
+        changes = contact_.update(cs, X, N, x_, move_velocity(v, fields_[k_.velocity], ratio), dt);
+        if (changes > 0) break;
+      }
+      solver_->parameters() = prm_.solver;
       if (changes == 0) {
         rec.active_set_iterations += as + 1;
         return;
