@@ -12,6 +12,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/LU>
 #include <Eigen/SparseCore>
 
 #include <maxentflow/core/dof_layout.hpp>
@@ -154,12 +155,17 @@ class GmresSolver {
   // structures, as the preconditioner of solves whose matrices have moved on
   // a little. Unknowns are matched through their layout: the same field
   // unknowns, and multipliers by key. A few rows that came or went (contact
-  // taken or released) are a low-rank difference that GMRES absorbs in a
-  // few iterations: the LU's solve sees the common rows (a released row's
-  // residual set to zero), and a new row's multiplier passes unchanged.
+  // taken or released) are not left to GMRES: the preconditioner is the
+  // exact inverse of the kept matrix with the released rows and columns
+  // taken out (Sherman-Morrison-Woodbury, one LU solve per released row)
+  // and the new rows bordered on (their columns from the operator, their
+  // rows taken as the columns' transpose, as the saddle system's L and L^T
+  // are). Left to GMRES, a released row made the preconditioner singular
+  // (its multiplier's velocity held at zero) and the LU was made again.
 
   /// The layout of the next solves' unknowns.
   void set_layout(const DofLayout& layout) {
+    if (layout == layout_) return;
     layout_ = layout;
     remap();
   }
@@ -179,6 +185,7 @@ class GmresSolver {
     kept_layout_ = layout_;
     if (layout_.size() != A.rows()) kept_layout_ = DofLayout{-1, {}};  // no layout given: matches none
     kept_n_ = A.rows();
+    keep_multiplier_rows(A);
     ++kept_factorizations_;
     remap();
   }
@@ -191,8 +198,17 @@ class GmresSolver {
     last_iterations_ = 0;
     last_residual_ = 0.0;
     if (b.norm() == 0.0) return Eigen::VectorXd::Zero(b.size());
+    if (!identity_ && !update_.built) build_update(op);
     return gmres(std::forward<Op>(op), [this](const Eigen::VectorXd& v) { return kept_apply(v); }, b,
                  max_iterations);
+  }
+  /// Multiplier rows of the current layout the kept LU takes exactly by a
+  /// low-rank update (released plus new), once a solve has built it; -1
+  /// while none is built, or the update was singular (GMRES then sees the
+  /// plain mapping: a released row's residual set to zero, a new row's
+  /// multiplier passed unchanged).
+  int kept_updated_rows() const {
+    return update_.built && update_.usable ? static_cast<int>(released_.size() + added_.size()) : -1;
   }
   /// LU factorizations made for the kept preconditioner (direct fallbacks included).
   int kept_factorizations() const { return kept_factorizations_; }
@@ -234,6 +250,9 @@ class GmresSolver {
   // Matches the current layout's multipliers to the kept LU's.
   void remap() {
     map_ok_ = identity_ = false;
+    update_ = Update{};
+    released_.clear();
+    added_.clear();
     if (!kept_ok_ || kept_layout_.fields != layout_.fields) return;
     if (kept_layout_ == layout_) {
       map_ok_ = identity_ = true;
@@ -243,18 +262,105 @@ class GmresSolver {
     for (std::size_t j = 0; j < kept_layout_.multipliers.size(); ++j)
       old.emplace(kept_layout_.multipliers[j], static_cast<int>(j));
     map_.assign(layout_.multipliers.size(), -1);
-    std::size_t matched = 0;
+    std::vector<char> used(kept_layout_.multipliers.size(), 0);
     for (std::size_t i = 0; i < layout_.multipliers.size(); ++i) {
       const auto it = old.find(layout_.multipliers[i]);
-      if (it == old.end() || it->second < 0) continue;
+      if (it == old.end() || it->second < 0) {
+        added_.push_back(static_cast<int>(i));
+        continue;
+      }
       map_[i] = it->second;
+      used[static_cast<std::size_t>(it->second)] = 1;
       it->second = -1;  // each old row serves one new row
-      ++matched;
     }
-    const std::size_t changed = layout_.multipliers.size() + kept_layout_.multipliers.size() - 2 * matched;
-    map_ok_ = static_cast<int>(changed) <= prm_.kept_max_changed_rows;
+    for (std::size_t j = 0; j < used.size(); ++j)
+      if (!used[j]) released_.push_back(static_cast<int>(j));
+    map_ok_ = static_cast<int>(released_.size() + added_.size()) <= prm_.kept_max_changed_rows;
   }
-  // z = M^-1 r with M the kept LU, through the layout map.
+  // The kept matrix's multiplier rows (row F + j as column j), for the
+  // update that takes released rows out.
+  void keep_multiplier_rows(const Matrix& A) {
+    const Eigen::Index F = kept_layout_.fields > 0 ? kept_layout_.fields : A.rows();
+    std::vector<Eigen::Triplet<double>> t;
+    for (int j = 0; j < A.outerSize(); ++j)
+      for (int k = A.outerIndexPtr()[j]; k < A.outerIndexPtr()[j + 1]; ++k)
+        if (A.innerIndexPtr()[k] >= F) t.emplace_back(j, A.innerIndexPtr()[k] - F, A.valuePtr()[k]);
+    kept_rows_.resize(A.rows(), A.rows() - F);
+    kept_rows_.setFromTriplets(t.begin(), t.end());
+  }
+
+  // The low-rank update of the kept LU to the current layout. Released old
+  // rows J: K_J = K + sum_j (a_j e_j^T + e_j b_j^T) puts identity in their
+  // rows and columns (a_j = e_j - K e_j, b_j = -(row j of K) off the
+  // diagonal and off J); with W = K^-1 E_J, K^-1 a_j = W_j - e_j, so the
+  // capacitance matrix is [[W_JJ, W_JJ], [B^T W, I + B^T W]]. New rows k
+  // border K_J: [[K_J, C], [C^T, D]] with C, D the operator's columns, solved
+  // through the Schur complement S = C^T K_J^-1 C - D.
+  struct Update {
+    bool built = false, usable = false;
+    Eigen::MatrixXd W, B, C, G, D;
+    Eigen::PartialPivLU<Eigen::MatrixXd> cap, schur;
+  };
+  template <class Op>
+  void build_update(Op&& op) {
+    update_ = Update{};
+    update_.built = true;
+    const Eigen::Index n0 = kept_n_, F = layout_.fields;
+    const auto J = static_cast<Eigen::Index>(released_.size());
+    const auto nk = static_cast<Eigen::Index>(added_.size());
+    Update u;
+    u.built = true;
+    if (J > 0) {
+      u.W.resize(n0, J);
+      u.B = Eigen::MatrixXd::Zero(n0, J);
+      for (Eigen::Index j = 0; j < J; ++j) {
+        const Eigen::Index row = F + released_[static_cast<std::size_t>(j)];
+        u.W.col(j) = kept_.solve(Eigen::VectorXd::Unit(n0, row));
+        for (Matrix::InnerIterator it(kept_rows_, row - F); it; ++it) u.B(it.row(), j) = -it.value();
+      }
+      for (Eigen::Index j = 0; j < J; ++j) u.B.row(F + released_[static_cast<std::size_t>(j)]).setZero();
+      Eigen::MatrixXd WJJ(J, J);
+      for (Eigen::Index i = 0; i < J; ++i) WJJ.row(i) = u.W.row(F + released_[static_cast<std::size_t>(i)]);
+      const Eigen::MatrixXd BW = u.B.transpose() * u.W;
+      Eigen::MatrixXd cap(2 * J, 2 * J);
+      cap << WJJ, WJJ, BW, Eigen::MatrixXd::Identity(J, J) + BW;
+      u.cap.compute(cap);
+      if (!(u.cap.rcond() > 1e-12)) return;  // K_J singular: the released rows held a mode
+    }
+    if (nk > 0) {
+      u.C = Eigen::MatrixXd::Zero(n0, nk);
+      u.D.resize(nk, nk);
+      const Eigen::Index n = layout_.size();
+      for (Eigen::Index k = 0; k < nk; ++k) {
+        const Eigen::VectorXd col = op(Eigen::VectorXd::Unit(n, F + added_[static_cast<std::size_t>(k)]));
+        u.C.col(k).head(F) = col.head(F);
+        for (std::size_t i = 0; i < map_.size(); ++i)
+          if (map_[i] >= 0) u.C(F + map_[i], k) = col[F + static_cast<Eigen::Index>(i)];
+        for (Eigen::Index l = 0; l < nk; ++l) u.D(l, k) = col[F + added_[static_cast<std::size_t>(l)]];
+      }
+      u.G.resize(n0, nk);
+      for (Eigen::Index k = 0; k < nk; ++k) u.G.col(k) = solve_released(u, u.C.col(k));
+      u.schur.compute(u.C.transpose() * u.G - u.D);
+      if (!(u.schur.rcond() > 1e-12)) return;  // a new row dependent on the others
+    }
+    u.usable = true;
+    update_ = std::move(u);
+  }
+  // K_J^-1 r (r zero in the released rows).
+  Eigen::VectorXd solve_released(const Update& u, const Eigen::VectorXd& r) const {
+    Eigen::VectorXd y = kept_.solve(r);
+    const auto J = static_cast<Eigen::Index>(released_.size());
+    if (J == 0) return y;
+    const Eigen::Index F = layout_.fields;
+    Eigen::VectorXd v(2 * J);
+    for (Eigen::Index j = 0; j < J; ++j) v[j] = y[F + released_[static_cast<std::size_t>(j)]];
+    v.tail(J).noalias() = u.B.transpose() * y;
+    const Eigen::VectorXd t = u.cap.solve(v);
+    y.noalias() -= u.W * (t.head(J) + t.tail(J));
+    for (Eigen::Index j = 0; j < J; ++j) y[F + released_[static_cast<std::size_t>(j)]] += t[j];
+    return y;
+  }
+  // z = M^-1 r with M the kept LU, through the layout map (and its update).
   Eigen::VectorXd kept_apply(const Eigen::VectorXd& r) const {
     if (identity_) return kept_.solve(r);
     const int F = layout_.fields;
@@ -262,13 +368,23 @@ class GmresSolver {
     r0.head(F) = r.head(F);
     for (std::size_t i = 0; i < map_.size(); ++i)
       if (map_[i] >= 0) r0[F + map_[i]] = r[F + static_cast<Eigen::Index>(i)];
-    const Eigen::VectorXd z0 = kept_.solve(r0);
+    const bool exact = update_.built && update_.usable;
+    Eigen::VectorXd z0 = exact ? solve_released(update_, r0) : kept_.solve(r0);
+    Eigen::VectorXd mu;
+    if (exact && !added_.empty()) {
+      Eigen::VectorXd rk(static_cast<Eigen::Index>(added_.size()));
+      for (std::size_t k = 0; k < added_.size(); ++k) rk[static_cast<Eigen::Index>(k)] = r[F + added_[k]];
+      mu = update_.schur.solve(update_.C.transpose() * z0 - rk);
+      z0.noalias() -= update_.G * mu;
+    }
     Eigen::VectorXd z(r.size());
     z.head(F) = z0.head(F);
     for (std::size_t i = 0; i < map_.size(); ++i) {
       const Eigen::Index k = F + static_cast<Eigen::Index>(i);
       z[k] = map_[i] >= 0 ? z0[F + map_[i]] : r[k];
     }
+    if (mu.size() > 0)
+      for (std::size_t k = 0; k < added_.size(); ++k) z[F + added_[k]] = mu[static_cast<Eigen::Index>(k)];
     return z;
   }
 
@@ -372,6 +488,9 @@ class GmresSolver {
   bool kept_ok_ = false, map_ok_ = false, identity_ = false;
   DofLayout layout_, kept_layout_;
   std::vector<int> map_;  // current multiplier -> the kept LU's (-1: new)
+  std::vector<int> released_, added_;  // the kept LU's rows not in the layout; the layout's new rows
+  Matrix kept_rows_;                   // the kept matrix's multiplier rows, as columns
+  Update update_;
   Eigen::Index kept_n_ = -1;
   int kept_factorizations_ = 0, exact_factorizations_ = 0;
   Eigen::MatrixXd product_part_;  // column_product's storage

@@ -88,6 +88,12 @@ class BasicMumpsSolver {
         irn_[static_cast<std::size_t>(k)] = A.innerIndexPtr()[k] + 1;
         jcn_[static_cast<std::size_t>(k)] = j + 1;
       }
+    // ICNTL(7): AMD up to amd_max_unknowns, MUMPS's own choice above. On
+    // max-ent systems of 4k-5k nodes (12k-15k unknowns) AMD gives the same
+    // fill and factorization time as the nested dissection MUMPS picks
+    // there, in half the analysis time (0.15 s against 0.26-0.34 s; the
+    // analysis is a quarter to a third of each kept LU's cost).
+    id_->icntl[6] = A.rows() <= amd_max_unknowns ? 0 : 7;
     id_->n = static_cast<MUMPS_INT>(A.rows());
     id_->nnz = static_cast<MUMPS_INT8>(A.nonZeros());
     id_->irn = irn_.data();
@@ -131,6 +137,8 @@ class BasicMumpsSolver {
     return rhs_.template cast<double>();
   }
   static constexpr const char* name() { return exact ? "MUMPS" : "MUMPS (single-precision factors)"; }
+  /// Systems up to this size are ordered by AMD (see analyze()).
+  static constexpr Eigen::Index amd_max_unknowns = 30000;
 
  private:
   // A's pattern is the analysed one (same size, nonzeros, row indices per column).
