@@ -952,7 +952,9 @@ TEST_CASE("sticking upsetting (E1): the first-step force over the frictionless o
     top.set_velocity({0, -V});
     s.add_tool(top, Sticking{});
     s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
-    ratio.push_back(s.step().tool_force[1].y() / F0);
+    const StepRecord rec = s.step();
+    INFO(nx << " x " << ny << ": " << rec.substeps << " substeps " << rec.note);
+    ratio.push_back(rec.tool_force[1].y() / F0);
     // The free side: v_r at mid-height well above v_r at the plate's edge.
     const auto& x = s.nodes_solved();
     const auto& v = s.velocity();
