@@ -160,8 +160,10 @@ class GmresSolver {
   // taken out (Sherman-Morrison-Woodbury, one LU solve per released row)
   // and the new rows bordered on (their columns from the operator, their
   // rows taken as the columns' transpose, as the saddle system's L and L^T
-  // are). Left to GMRES, a released row made the preconditioner singular
-  // (its multiplier's velocity held at zero) and the LU was made again.
+  // are). Left to GMRES (a released row's residual set to zero, a new row's
+  // multiplier passed unchanged), changed rows cost iterations: in
+  // test_flow's saddle system 13 for one released row, no convergence in 40
+  // for four; on E3 the LU then failed its 20 and was made again.
 
   /// The layout of the next solves' unknowns.
   void set_layout(const DofLayout& layout) {
