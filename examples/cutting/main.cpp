@@ -15,6 +15,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <numbers>
 #include <sstream>
 #include <string>
@@ -92,24 +93,34 @@ struct ToolFrame {
         normal(-std::cos(o.s.rake * deg), std::sin(o.s.rake * deg)) {}
 };
 
-// The chip thickness on a configuration: the mean distance from the rake
-// face of the free boundary nodes that lie above the uncut surface and,
-// along the face, between 1.5 t0 and 4 t0 from the tip (where the chip has
-// turned up the face); NaN where there are none (no chip yet).
+// The chip thickness on a configuration: along the rake face's normal, from
+// the face to the chip's free surface, at stations 1.5 t0 to 3 t0 up the face
+// (above the uncut surface) where the chip's back still lies on the face;
+// the least of them, since the chip's root below and its curl above both
+// read thicker along that normal. NaN where there are none (no chip yet).
 double chip_thickness(const Options& o, const Stepper<NortonHoff>& sim, const ToolFrame& f) {
   const auto& x = sim.nodes_solved();
-  const auto& flags = sim.contact_flags();
-  double sum = 0;
-  int count = 0;
-  for (int a : sim.mesh().boundary_nodes()) {
-    if (flags[static_cast<std::size_t>(a)] != 0) continue;
-    const Eigen::Vector2d r = x.col(a) - f.tip;
-    const double s = r.dot(f.along), d = r.dot(f.normal);
-    if (x(1, a) <= o.s.height || s < 1.5 * o.s.t0 || s > 4 * o.s.t0 || d <= 0) continue;
-    sum += d;
-    ++count;
+  const double h = o.s.spacing();
+  double best = std::numeric_limits<double>::infinity();
+  for (double st = 1.5; st <= 3.0 + 1e-9; st += 0.25) {
+    const Eigen::Vector2d p = f.tip + st * o.s.t0 * f.along;
+    if (p.y() <= o.s.height) continue;
+    // Crossings of the ray p + u normal (u > 0) with the boundary.
+    std::vector<double> u;
+    for (const auto& seg : sim.mesh().boundary_segments()) {
+      const Eigen::Vector2d a = x.col(seg.a), d = x.col(seg.b) - a;
+      const double det = f.normal.x() * -d.y() + f.normal.y() * d.x();
+      if (std::abs(det) < 1e-14 * d.norm()) continue;
+      const Eigen::Vector2d r = a - p;
+      const double ui = (r.x() * -d.y() + r.y() * d.x()) / det;
+      const double wi = (f.normal.x() * r.y() - f.normal.y() * r.x()) / det;
+      if (wi >= 0 && wi <= 1 && ui > -0.25 * h) u.push_back(ui);
+    }
+    // On the face: the chip's back (within h/4 of it), then its far side.
+    std::sort(u.begin(), u.end());
+    if (u.size() >= 2 && u[0] <= 0.25 * h) best = std::min(best, u[1] - u[0]);
   }
-  return count > 0 ? sum / count : std::nan("");
+  return std::isfinite(best) ? best : std::nan("");
 }
 
 // Shear angle from the chip ratio r = t0 / tc: tan(phi) = r cos(a) / (1 - r sin(a)).
@@ -188,9 +199,11 @@ int main(int argc, char** argv) {
         chip.load(in);
       });
     const double gap0 = o.s.tip_start().x() - o.s.length;
+    // The pressure maps at a third and two thirds of the run need their VTUs.
+    const int map_steps[2] = {std::max(1, o.steps / 3), std::max(1, 2 * o.steps / 3)};
     for (int k = sim.steps_done() + 1; k <= o.steps; ++k) {
       const auto& r = sim.step();
-      const bool vtu = k == 1 || k == o.steps || k % o.vtu_every == 0;
+      const bool vtu = k == 1 || k == o.steps || k % o.vtu_every == 0 || k == map_steps[0] || k == map_steps[1];
       results.record(sim, vtu);
       const double travel = r.tool_stroke[0], cut = std::max(0.0, travel - gap0);
       const double t_start = r.time - r.dt;
@@ -261,7 +274,7 @@ int main(int argc, char** argv) {
     std::cout << "results in " << dir << " (step.pvd: open in ParaView)\n";
     if (!o.no_plots) {
       std::ostringstream args;
-      const int s1 = std::max(1, o.steps / 3), s2 = std::max(1, 2 * o.steps / 3);
+      const int s1 = map_steps[0], s2 = map_steps[1];
       args << '"' << dir.string() << "\" --maps pressure:" << s1 << ',' << s2 << ',' << o.steps << " velocity_y:"
            << o.steps << " --mesh " << o.steps << " --cutting";
       examples::run_plot_script(fs::path(MAXENTFLOW_EXAMPLE_DIR) / "../common/plot_forming.py", args.str());

@@ -947,11 +947,7 @@ TEST_CASE("sticking upsetting (E1): the first-step force over the frictionless o
     prm.geometry = Geometry::axisymmetric;
     prm.dt = 1.0;
     Stepper<NortonHoff> s(block_nodes(nx, ny, R0, H0, false), mat, prm);
-    s.add_tool(flat_plate("bottom", {0, 0}, {0, 1}, 100), Sticking{});
-    RigidTool top = flat_plate("top", {0, H0}, {0, -1}, 100);
-    top.set_velocity({0, -V});
-    s.add_tool(top, Sticking{});
-    s.add_velocity_condition({"axis", on_line({0, 0}, {1, 0}, 1e-9), {1, 0}, 0.0});
+    add_plates(s, H0, V, Sticking{});
     const StepRecord rec = s.step();
     INFO(nx << " x " << ny << ": " << rec.substeps << " substeps " << rec.note);
     ratio.push_back(rec.tool_force[1].y() / F0);
@@ -969,6 +965,33 @@ TEST_CASE("sticking upsetting (E1): the first-step force over the frictionless o
   // Converging: each refinement moves the ratio by less than half the last change.
   CHECK(std::abs(ratio[2] - ratio[1]) < 0.5 * std::abs(ratio[1] - ratio[0]));
   CHECK(std::abs(ratio[2] - ratio[1]) < 2e-3 * ratio[2]);
+}
+
+TEST_CASE("a stalled Newton hands back to Picard: sticking upsetting with the kept LU carried into every solve",
+          "[stepper][contact][friction][solver]") {
+  // E1's billet between sticking plates, 21 x 25, one step from rest, with
+  // the kept LU tried at the start of every solve (kept_lu_skip_carry 1).
+  // The resume after the active-set check then starts Newton where the dead
+  // zone's viscosity (strain rate near d_min) lets it make only line-search
+  // steps of 1/32: without the stall rule it spent its 60 iterations there
+  // and the step was retried at dt/2. The step must be taken at once, with
+  // the force of the default settings.
+  const double R0 = 10, H0 = 12, V = 0.06;
+  const NortonHoff mat(150.0, 0.2, 1e-6 * V / H0);
+  std::vector<double> force;
+  for (const int skip : {4, 1}) {
+    StepperParams prm;
+    prm.geometry = Geometry::axisymmetric;
+    prm.dt = 1.0;
+    prm.solver.kept_lu_skip_carry = skip;
+    Stepper<NortonHoff> s(block_nodes(21, 25, R0, H0, false), mat, prm);
+    add_plates(s, H0, V, Sticking{});
+    const StepRecord rec = s.step();
+    INFO("kept_lu_skip_carry " << skip << ": " << rec.substeps << " substeps " << rec.note);
+    CHECK(rec.substeps == 1);
+    force.push_back(rec.tool_force[1].y());
+  }
+  CHECK(force[1] == Approx(force[0]).epsilon(1e-6));
 }
 
 TEST_CASE("contact fields on the nodes: the pressure integrates to the press force, friction stress and slip",

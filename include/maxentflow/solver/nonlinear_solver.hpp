@@ -119,6 +119,13 @@ struct NonlinearSolverParams {
   double velocity_tol = 1e-7;
   double residual_tol = 1e-7;
   int line_search = 8;             ///< step halvings
+  /// Newton that makes only short steps (line search at or below
+  /// newton_stall_step) for newton_stall_iterations in a row is stalled, not
+  /// converging: back to Picard, as after a failed line search. Seen where
+  /// the Norton-Hoff viscosity of a dead zone (strain rate near d_min) bends
+  /// the residual faster than the tangent follows. 0: never.
+  int newton_stall_iterations = 3;
+  double newton_stall_step = 1.0 / 16;
   /// Krylov policies: solve each linearization only as far as the outer
   /// iteration can use (inexact Newton forcing term, Eisenstat-Walker style):
   /// |R + A dx| <= eta |R| with eta = clamp(max(res, 0.5 residual_tol / res),
@@ -232,6 +239,7 @@ class NonlinearSolver {
     if constexpr (SteerableKrylovSolver<Linear>)
       fallbacks_before = linear_.direct_fallbacks() + picard_linear_.direct_fallbacks();
     bool full_newton_step = false;
+    int short_steps = 0;  // Newton steps in a row at or below newton_stall_step
     double increment = std::numeric_limits<double>::infinity();
     Eigen::VectorXd R, dx;
     for (int it = 0; it < prm_.max_iterations; ++it) {
@@ -281,13 +289,22 @@ class NonlinearSolver {
       }
       X += step * dx;
       full_newton_step = kind == Linearization::newton && step == 1.0;
+      short_steps = kind == Linearization::newton && step <= prm_.newton_stall_step ? short_steps + 1 : 0;
       const double vnorm = sys.velocity_norm(X);
       increment = step * sys.velocity_norm(dx) / (vnorm > 0 ? vnorm : 1.0);
       rep.increment = increment;
       rep.history.push_back({it, kind, res, increment, step, linear_its});
       (kind == Linearization::picard ? rep.picard : rep.newton) += 1;
       log_iteration(it, kind, res, increment, step, linear_its);
-      // 4. Picard hands over to Newton once the increment is small.
+      // 4. Picard hands over to Newton once the increment is small; a
+      //    stalled Newton hands back.
+      if (prm_.newton_stall_iterations > 0 && short_steps >= prm_.newton_stall_iterations) {
+        if (prm_.log) *prm_.log << "  newton stalled (" << short_steps << " short steps); back to picard\n";
+        phase = Linearization::picard;
+        picard_since_switch_ = 0;
+        short_steps = 0;
+        continue;
+      }
       if (phase == Linearization::picard) ++picard_since_switch_;
       if (phase == Linearization::picard && prm_.newton &&
           (increment < prm_.switch_increment || picard_since_switch_ >= prm_.max_picard))
