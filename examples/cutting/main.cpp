@@ -24,6 +24,7 @@
 #include <maxentflow/maxentflow.hpp>
 
 #include "common/friction.hpp"
+#include "common/load_steadiness.hpp"
 #include "common/plotting.hpp"
 #include "common/restart.hpp"
 #include "cutting/cutting_case.hpp"
@@ -232,17 +233,15 @@ int main(int argc, char** argv) {
     const auto& hist = sim.history();
     const int n_steps = static_cast<int>(hist.size());
     const int from = n_steps - std::max(1, static_cast<int>(0.3 * n_steps));
-    double fc_mean = 0, ft_mean = 0, fc_lo = 1e300, fc_hi = -1e300;
+    std::vector<double> fc_last;
+    double ft_mean = 0;
     for (int k = from; k < n_steps; ++k) {
-      const double fc = hist[static_cast<std::size_t>(k)].tool_force[0].x();
-      fc_mean += fc;
+      fc_last.push_back(hist[static_cast<std::size_t>(k)].tool_force[0].x());
       ft_mean += hist[static_cast<std::size_t>(k)].tool_force[0].y();
-      fc_lo = std::min(fc_lo, fc);
-      fc_hi = std::max(fc_hi, fc);
     }
-    fc_mean /= n_steps - from;
     ft_mean /= n_steps - from;
-    const double band = std::max(fc_hi / fc_mean - 1, 1 - fc_lo / fc_mean);
+    const examples::LoadSteadiness fc_steady = examples::load_steadiness(fc_last);
+    const double fc_mean = fc_steady.mean, band = fc_steady.band();
     const double ratio = ft_mean / fc_mean, ratio_exact = -std::tan(o.s.rake * deg);
     const ToolFrame last(o, hist.back().tool_stroke[0]);
     const double tc = chip_thickness(o, sim, last);
@@ -262,9 +261,8 @@ int main(int argc, char** argv) {
     std::cout << "cutting: " << n_steps << " steps, " << sim.nodes().cols() << " nodes (" << nodes0 << " at the "
               << "start, +" << added << " -" << removed << " by rezoning), " << total << " s\n"
               << "  max area change " << 100 * worst_area << " %, min gap " << min_gap << " h\n"
-              << "  cutting force over the last 30 % of the steps: mean Fc " << fc_mean << ", band +-"
-              << 100 * band << " %; Ft/Fc " << ratio << " (frictionless rake: -tan(rake) = " << ratio_exact
-              << ")\n"
+              << "  cutting force Fc over the last 30 % of the steps: " << fc_steady << "; Ft/Fc " << ratio
+              << " (frictionless rake: -tan(rake) = " << ratio_exact << ")\n"
               << "  chip thickness "
               << (std::isfinite(tc) ? detail::cat(tc, " (t0 ", o.s.t0, "), shear angle ", phi, " deg")
                                     : std::string("not measured (no chip above the uncut surface yet)"))

@@ -23,6 +23,7 @@
 #include <maxentflow/maxentflow.hpp>
 
 #include "common/friction.hpp"
+#include "common/load_steadiness.hpp"
 #include "common/plotting.hpp"
 #include "common/restart.hpp"
 #include "extrusion/extrusion_case.hpp"
@@ -128,6 +129,7 @@ struct Options {
   int steps = 100, vtu_every = 10;
   std::string out = "results/extrusion", node_update = "ab2";
   std::vector<int> convergence;
+  std::vector<double> load_window = {30, 130};
   examples::FrictionOptions friction;
   examples::RestartOptions restart;
 };
@@ -170,6 +172,11 @@ void add_options(CLI::App& app, Setup& s, Options& o) {
                "Exit 1 unless: no penetration, area change < --area-tol, product width within 5 % of the "
                "die opening, step-1 axis pressure decreasing, die-face pressure peaking next to the die corner");
   app.add_option("--area-tol", o.area_tol, "Largest area (volume) change --check accepts")->check(CLI::PositiveNumber);
+  app.add_option("--load-window", o.load_window,
+                 "Ram strokes (from,to) over which the ram load's steadiness is reported")
+      ->delimiter(',')
+      ->expected(2)
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--convergence", o.convergence,
                  "Only step 1 on billets of these nodes per side; compare the axis pressure")
       ->delimiter(',');
@@ -239,6 +246,9 @@ RunMeasures run(const Setup& s, const Options& o, const std::string& signature, 
 struct ProductWidth {
   double width = 0, error = 1, top = 0;
   int nodes = 0;
+  // The product's free surface between the land's end and 3 h before the
+  // nose: the boundary node farthest from the opening's line (in h0).
+  double surface_dev = 0, surface_x = 0;
 };
 ProductWidth product_width(const Setup& s, const IntegrationMesh<>& mesh) {
   const double exit = s.length + s.land;
@@ -258,6 +268,14 @@ ProductWidth product_width(const Setup& s, const IntegrationMesh<>& mesh) {
     if (q.x() > x1 && q.x() < x2) {
       w.top = std::max(w.top, q.y());
       ++w.nodes;
+    }
+  }
+  for (int a : mesh.boundary_nodes()) {
+    const Eigen::Vector2d q = frame(s, mesh.nodes().col(a));
+    const double dev = std::abs(q.y() - s.opening()) / hmean;
+    if (q.x() > exit && q.x() < x2 && q.y() > 0.5 * s.opening() && dev > w.surface_dev) {
+      w.surface_dev = dev;
+      w.surface_x = q.x();
     }
   }
   w.width = x2 > x1 ? area / (x2 - x1) : 0.0;
@@ -341,14 +359,27 @@ int main(int argc, char** argv) {
     const ProductWidth w = product_width(s, sim.mesh());
     const Step1Shape f = step1_shape(s, m.first);
     double total = 0;
-    for (const auto& r : sim.history()) total += r.seconds;
+    // The load a press reads: the ram force against the ram's motion.
+    const Eigen::Vector2d ram_dir = sim.tools()[0].velocity().normalized();
+    std::vector<double> ram_load;
+    for (const auto& r : sim.history()) {
+      total += r.seconds;
+      if (r.tool_stroke[0] >= o.load_window[0] && r.tool_stroke[0] <= o.load_window[1])
+        ram_load.push_back(-r.tool_force[0].dot(ram_dir));
+    }
+    const examples::LoadSteadiness load = examples::load_steadiness(ram_load);
     std::cout << "extrusion: " << o.steps << " steps, " << sim.nodes().cols() << " nodes, " << total << " s\n"
               << "  max area change " << 100 * m.max_area_change << " %, min gap " << m.min_gap
               << " h, product width " << w.width << " (die opening " << s.opening() << ", " << 100 * w.error
               << " %; top node at " << w.top << ", " << w.nodes << " nodes)\n"
+              << "  free surface from the land's end to 3 h before the nose: farthest boundary node "
+              << w.surface_dev << " h from the opening's line (at " << w.surface_x << ")\n"
               << "  step-1 axis pressure " << m.first.p_axis[0] << " at the ram to "
               << m.first.p_axis[m.first.p_axis.size() - 1] << " at the die; largest rise " << f.rise / f.range
               << " of the range; die-face peak at y = " << f.peak_y << "\n"
+              << "  ram load over the stroke " << o.load_window[0] << "-" << o.load_window[1] << ": "
+              << (load.samples > 1 ? detail::cat(load) : std::string("fewer than two steps in the window"))
+              << "\n"
               << "  friction: " << o.friction.describe() << "\n"
               << "results in " << dir << " (step.pvd: open in ParaView)\n";
 
