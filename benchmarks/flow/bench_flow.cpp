@@ -13,7 +13,7 @@
 // Per size it prints one line
 //   BENCH flow N=... unknowns=... nnz=... mesh=... basis=... pattern=... constraints=...
 //         assembly=... factorization=... solve=... nonlinear_other=... total=... picard=...
-//         newton=... peak_rss_mb=... ...
+//         newton=... krylov=... direct_fallbacks=... peak_rss_mb=... ...
 // (seconds; `basis` is the MaxEntBasis construction plus the FlowDiscretization
 // build, which evaluates the basis at all Gauss and edge points; `pattern` the
 // FlowSystem construction plus the first size(); assembly/factorization/solve
@@ -90,7 +90,7 @@ Eigen::Matrix2Xd block(int side, double L, double delta, unsigned seed) {
 
 struct Figures {
   std::map<std::string, double> t;  // seconds per part
-  int picard = 0, newton = 0;
+  int picard = 0, newton = 0, fallbacks = 0;
 };
 
 void progress(int side, const char* part, double seconds) {
@@ -155,18 +155,19 @@ Figures run(int side) {
   f.t["total"] = since(start);
   f.picard = rep.picard;
   f.newton = rep.newton;
+  f.fallbacks = rep.direct_fallbacks;
 
   const Eigen::Vector2d top = system.reaction("top", X);
   std::printf(
       "BENCH flow N=%ld threads=%d unknowns=%d nnz=%ld triangles=%ld mean_nodes_per_cell=%.1f "
       "mean_adjacency=%.1f mesh=%.4f basis=%.4f pattern=%.4f constraints=%.4f assembly=%.4f "
       "factorization=%.4f solve=%.4f nonlinear_other=%.4f total=%.4f picard=%d newton=%d "
-      "krylov=%d residual=%.3e top_force_y=%.6g peak_rss_mb=%.1f solver=%s\n",
+      "krylov=%d direct_fallbacks=%d residual=%.3e top_force_y=%.6g peak_rss_mb=%.1f solver=%s\n",
       static_cast<long>(x.cols()), max_threads(), unknowns, nnz,
       static_cast<long>(mesh.number_of_triangles()), disc.mean_nodes_per_cell(),
       system.pattern().mean_adjacency(), f.t["mesh"], f.t["basis"], f.t["pattern"],
       f.t["constraints"], f.t["assembly"], f.t["factorization"], f.t["solve"],
-      f.t["nonlinear_other"], f.t["total"], f.picard, f.newton, rep.linear_iterations, rep.residual,
+      f.t["nonlinear_other"], f.t["total"], f.picard, f.newton, rep.linear_iterations, f.fallbacks, rep.residual,
       top.y(), peak_rss_mb(), solver_name());
   std::fflush(stdout);
   return f;

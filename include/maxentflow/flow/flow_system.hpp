@@ -239,6 +239,49 @@ class FlowSystem {
     residual_impl(X, Linearization::picard, nullptr, R);
   }
 
+  /// For the iterate of a solve from rest, whose viscosity was uniform
+  /// (mu(d_min)): that system's velocity does not depend on the viscosity's
+  /// value (tau ~ 1/mu keeps Eq. (21) homogeneous in it), its pressure and
+  /// multipliers scale with it, ~1e4 times those of the flow's own viscosity.
+  /// Scales them by the c that minimizes the momentum residual at X (affine
+  /// in c) and returns c; leaves X and returns 1 where that does not lower
+  /// |R|. The next solve's right-hand side is then the flow's, not mu(d_min)'s
+  /// pressure left over, which a Krylov solve would have to cancel to ~1e-8.
+  double rescale_stresses(Eigen::VectorXd& X) {
+    update_structure();
+    const int nv = DofLayout::fields_of(number_of_nodes());
+    require(X.size() == pattern_.size(), detail::cat("X has ", X.size(), " entries, the system ", pattern_.size()),
+            "FlowSystem::rescale_stresses");
+    auto scaled = [&](double c) {
+      Eigen::VectorXd Y = X;
+      for (int a = 0; a < number_of_nodes(); ++a) Y[DofLayout::pressure(a)] *= c;
+      Y.tail(Y.size() - nv) *= c;
+      return Y;
+    };
+    auto momentum_dot = [&](const Eigen::VectorXd& u, const Eigen::VectorXd& v) {
+      double d = 0.0;
+      for (int k = 0; k < nv; ++k)
+        if (k % DofLayout::per_node != 2) d += u[k] * v[k];
+      return d;
+    };
+    Eigen::VectorXd R0, R1, Rc;
+    residual(scaled(0.0), R0);
+    residual(X, R1);
+    const Eigen::VectorXd b = R1 - R0;
+    const double bb = momentum_dot(b, b);
+    const double c = bb > 0 ? -momentum_dot(R0, b) / bb : 1.0;
+    if (c > 0 && c != 1.0) {
+      Eigen::VectorXd Y = scaled(c);
+      residual(Y, Rc);
+      if (momentum_dot(Rc, Rc) < momentum_dot(R1, R1)) {
+        X = std::move(Y);
+        return c;
+      }
+    }
+    residual(X, R1);  // the force scale of X
+    return 1.0;
+  }
+
   /// |momentum residual| / force scale (|internal force| + |traction|) of the last evaluation.
   double relative_residual(const Eigen::VectorXd& R) const {
     const int nv = DofLayout::fields_of(number_of_nodes());

@@ -78,6 +78,13 @@ struct GmresParams {
   /// The kept LU preconditions a layout that differs from its own by at most
   /// this many multiplier rows (added plus removed).
   int kept_max_changed_rows = 16;
+  /// Solves preconditioned by the companion's LU run on rows scaled by A's
+  /// largest entry in each (D A x = D b, preconditioner (D P)^-1); their
+  /// tolerance holds in that scaled norm. The momentum rows scale with the
+  /// viscosity (up to mu(d_min) at rest), the multiplier rows do not:
+  /// unscaled, GMRES's norm is that of a few rows and it stalls (bench_flow
+  /// from rest: 157 iterations to 1e-4, scaled 12; docs/method.md section 8).
+  bool equilibrate = true;
 };
 
 /// Why a sparse companion and not an incomplete factorization: max-ent
@@ -85,8 +92,9 @@ struct GmresParams {
 /// on the indefinite saddle system; the linear-triangle system on the same
 /// Delaunay mesh has the same physics (viscosity, incompressibility, tau, the
 /// same multiplier rows), 7 neighbours per node, and an exact LU whose fill
-/// grows like N log N in 2-D. Measured: tens of iterations, independent of
-/// the thread count and nearly of N (see benchmarks/flow).
+/// grows like N log N in 2-D. Measured (rows equilibrated): 10-70
+/// iterations per solve, independent of the thread count and of N from 1k
+/// to 64k nodes (benchmarks/flow).
 /// Kept: the LU of full system matrices (the kept LU, the direct fallback),
 /// MUMPS with single-precision factors where the build has it (KeptLuSolver):
 /// GMRES corrects what a preconditioner leaves, and the fallback's solve is
@@ -130,11 +138,19 @@ class GmresSolver {
     // Newton's next matrices differ little from it, so GMRES needs a few
     // iterations where the linear-triangle preconditioner needed hundreds.
     const int max_iterations = allow_fallback ? prm_.max_iterations : std::min(prm_.max_iterations, prm_.restart);
-    Eigen::VectorXd x = gmres([&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return product(A, v); },
-                              [this](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-                                return frozen_ ? kept_.solve(v) : M_.solve(v);
-                              },
-                              b, max_iterations);
+    Eigen::VectorXd x;
+    if (!frozen_ && prm_.equilibrate) {
+      row_maxima(A, row_max_);
+      x = gmres([&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return product(A, v).cwiseQuotient(row_max_); },
+                [this](const Eigen::VectorXd& v) -> Eigen::VectorXd { return M_.solve(v.cwiseProduct(row_max_)); },
+                b.cwiseQuotient(row_max_), max_iterations);
+    } else {
+      x = gmres([&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return product(A, v); },
+                [this](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+                  return frozen_ ? kept_.solve(v) : M_.solve(v);
+                },
+                b, max_iterations);
+    }
     if (last_residual_ <= prm_.tol || !allow_fallback) return x;
     require(prm_.direct_fallback,
             detail::cat("GMRES did not converge in ", last_iterations_, " iterations (relative residual ",
@@ -225,6 +241,8 @@ class GmresSolver {
   bool converged() const { return last_residual_ <= prm_.tol; }
   /// False after the preconditioner failed to factorize (solves go direct).
   bool preconditioner_usable() const { return usable_; }
+  /// The last solve's relative residual; in the equilibrated rows' norm
+  /// where the companion preconditioned it (GmresParams::equilibrate).
   double last_residual() const { return last_residual_; }
   /// Solves done by a direct LU of A instead (GMRES did not converge in
   /// max_iterations, or P could not be factorized); that LU then
@@ -238,6 +256,15 @@ class GmresSolver {
   void no_refinement() {
     if constexpr (requires(Preconditioner& p) { p.set_refinement_steps(0); }) M_.set_refinement_steps(0);
     if constexpr (requires(Kept& p) { p.set_refinement_steps(0); }) kept_.set_refinement_steps(0);
+  }
+  // The largest |entry| of each row of A (1 for an empty row).
+  static void row_maxima(const Matrix& A, Eigen::VectorXd& m) {
+    m.setZero(A.rows());
+    for (int j = 0; j < A.outerSize(); ++j)
+      for (int k = A.outerIndexPtr()[j]; k < A.outerIndexPtr()[j + 1]; ++k)
+        m[A.innerIndexPtr()[k]] = std::max(m[A.innerIndexPtr()[k]], std::abs(A.valuePtr()[k]));
+    for (Eigen::Index i = 0; i < m.size(); ++i)
+      if (!(m[i] > 0)) m[i] = 1.0;
   }
   template <class F>
   bool guard(F&& f) {
@@ -495,6 +522,7 @@ class GmresSolver {
   Update update_;
   Eigen::Index kept_n_ = -1;
   int kept_factorizations_ = 0, exact_factorizations_ = 0;
+  Eigen::VectorXd row_max_;       // A's largest |entry| per row (equilibrate)
   Eigen::MatrixXd product_part_;  // column_product's storage
   Eigen::MatrixXd V_, Z_, H_;
   Eigen::VectorXd cs_, sn_, g_, h_;

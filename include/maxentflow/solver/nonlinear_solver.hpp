@@ -288,6 +288,9 @@ class NonlinearSolver {
         continue;
       }
       X += step * dx;
+      // The first Picard iterate from rest has mu(d_min)'s pressure scale.
+      if constexpr (requires { sys.rescale_stresses(X); })
+        if (it == 0 && !warm_start_ && !resume && kind == Linearization::picard) sys.rescale_stresses(X);
       full_newton_step = kind == Linearization::newton && step == 1.0;
       short_steps = kind == Linearization::newton && step <= prm_.newton_stall_step ? short_steps + 1 : 0;
       const double vnorm = sys.velocity_norm(X);
