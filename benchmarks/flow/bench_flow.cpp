@@ -138,7 +138,7 @@ Figures run(int side) {
   const int unknowns = system.size();
   f.t["pattern"] += since(t0);
   progress(side, "pattern+constraints", f.t["pattern"] + f.t["constraints"]);
-  const long nnz = static_cast<long>(system.pattern().matrix().nonZeros());
+  const long nnz = static_cast<long>(system.pattern().nonzeros());
 
   // 4. One nonlinear solve from rest.
   t0 = clock_type::now();

@@ -2,6 +2,7 @@
 // thread-count independence, loud failures; GMRES and its preconditioner.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <utility>
@@ -645,6 +646,27 @@ TEST_CASE("after the first Picard solve from rest, pressure and multipliers take
       CHECK(after < 0.4 * before);
     }
   }
+}
+
+TEST_CASE("the system's pattern: indices only, the structure of every assembled matrix", "[flow][solver]") {
+  auto P = compression(0.2);
+  FlowSystem<NortonHoff>& sys = *P.system;
+  Eigen::VectorXd X = Eigen::VectorXd::Zero(sys.size()), R;
+  SystemPattern::Matrix A;
+  sys.assemble(X, Linearization::picard, A, R);
+  const SystemPattern& pat = sys.pattern();
+  REQUIRE(A.isCompressed());
+  REQUIRE(A.nonZeros() == pat.nonzeros());
+  CHECK(std::equal(A.outerIndexPtr(), A.outerIndexPtr() + A.cols() + 1, pat.outer_index()));
+  CHECK(std::equal(A.innerIndexPtr(), A.innerIndexPtr() + A.nonZeros(), pat.inner_index()));
+  CHECK(A.norm() > 0);
+  const SystemPattern::Matrix Z = pat.matrix();
+  CHECK(Z.nonZeros() == pat.nonzeros());
+  CHECK(Z.norm() == 0.0);
+  // Assembled again into the same matrix: zeroed in place, the same values.
+  const SystemPattern::Matrix A1 = A;
+  sys.assemble(X, Linearization::picard, A, R);
+  CHECK((A - A1).norm() == 0.0);
 }
 
 TEST_CASE("GMRES with the linear-triangle companion converges from rest without a direct LU",

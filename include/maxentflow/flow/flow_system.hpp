@@ -179,7 +179,7 @@ class FlowSystem {
     }
     if (linear_->generation != pattern_.generation()) {
       linear_->pattern.set_constraints(constraints_.rows());
-      linear_->entry_pos = constraint_positions(linear_->pattern.matrix());
+      linear_->entry_pos = constraint_positions(linear_->pattern);
       linear_->generation = pattern_.generation();
     }
     const SystemPattern& lp = linear_->pattern;
@@ -191,9 +191,8 @@ class FlowSystem {
   /// M gets the pattern's structure (when it or its generation differs) with
   /// zero values; otherwise its values are zeroed in place (no reallocation).
   static void reset_to_pattern(Matrix& M, const SystemPattern& pat, long& generation) {
-    if (M.rows() != pat.size() || M.nonZeros() != pat.matrix().nonZeros() ||
-        generation != pat.generation()) {
-      M = pat.matrix();
+    if (M.rows() != pat.size() || M.nonZeros() != pat.nonzeros() || generation != pat.generation()) {
+      pat.zero_matrix(M);
       generation = pat.generation();
     } else {
       std::fill_n(M.valuePtr(), M.nonZeros(), 0.0);
@@ -318,7 +317,7 @@ class FlowSystem {
     structure_dirty_ = false;
     link_traction_multipliers();
     pattern_.set_constraints(constraints_.rows());
-    entry_pos_ = constraint_positions(pattern_.matrix());
+    entry_pos_ = constraint_positions(pattern_);
     entry_coef_.clear();
     for (const auto& r : constraints_.rows()) entry_coef_.insert(entry_coef_.end(), r.coef.begin(), r.coef.end());
     layout_.fields = DofLayout::fields_of(number_of_nodes());
@@ -335,11 +334,11 @@ class FlowSystem {
   }
 
   // Value positions of each constraint coefficient in A (both blocks), in row order.
-  std::vector<std::pair<int, int>> constraint_positions(const Matrix& A) const {
+  std::vector<std::pair<int, int>> constraint_positions(const SystemPattern& pat) const {
     const int nv = DofLayout::fields_of(number_of_nodes());
     std::vector<std::pair<int, int>> pos;
-    const int* outer = A.outerIndexPtr();
-    const int* inner = A.innerIndexPtr();
+    const int* outer = pat.outer_index();
+    const int* inner = pat.inner_index();
     auto position = [&](int row, int col) {
       const int* b = inner + outer[col];
       const int* e = inner + outer[col + 1];

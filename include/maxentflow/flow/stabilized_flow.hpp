@@ -101,8 +101,8 @@ class SystemPattern {
         for (int d : rows[static_cast<std::size_t>(i)].dof)
           extra_row[static_cast<std::size_t>(pos[d]++)] = nv + i;
     }
-    A_.resize(n_, n_);
-    std::vector<int> outer(static_cast<std::size_t>(n_) + 1, 0);
+    std::vector<int>& outer = outer_;
+    outer.assign(static_cast<std::size_t>(n_) + 1, 0);
     for (int b = 0; b < n_nodes_; ++b)
       for (int c = 0; c < nf; ++c) {
         const int j = nf * b + c;
@@ -110,9 +110,8 @@ class SystemPattern {
       }
     for (int i = 0; i < m; ++i)
       outer[nv + i + 1] = outer[nv + i] + static_cast<int>(rows[static_cast<std::size_t>(i)].dof.size());
-    A_.resizeNonZeros(outer.back());
-    std::copy(outer.begin(), outer.end(), A_.outerIndexPtr());
-    int* inner = A_.innerIndexPtr();
+    inner_.assign(static_cast<std::size_t>(outer.back()), 0);
+    int* inner = inner_.data();
     for (int b = 0; b < n_nodes_; ++b)
       for (int c = 0; c < nf; ++c) {
         const int j = nf * b + c;
@@ -125,7 +124,6 @@ class SystemPattern {
       int k = outer[nv + i];
       for (int d : rows[static_cast<std::size_t>(i)].dof) inner[k++] = d;
     }
-    std::fill_n(A_.valuePtr(), A_.nonZeros(), 0.0);
     generation_ = next_generation();
   }
 
@@ -134,8 +132,26 @@ class SystemPattern {
   /// Nodes coupled to node b (ascending).
   const int* adjacency_begin(int b) const { return adj_.data() + adj_offset_[b]; }
   const int* adjacency_end(int b) const { return adj_.data() + adj_offset_[b + 1]; }
-  /// A zeroed matrix with this structure.
-  const Matrix& matrix() const { return A_; }
+  /// A zeroed matrix with this structure (a new one each call: the pattern
+  /// keeps only the indices, a third of a matrix's memory).
+  Matrix matrix() const {
+    Matrix M;
+    zero_matrix(M);
+    return M;
+  }
+  /// M gets this structure with zero values.
+  void zero_matrix(Matrix& M) const {
+    M.resize(n_, n_);
+    M.resizeNonZeros(nonzeros());
+    std::copy(outer_.begin(), outer_.end(), M.outerIndexPtr());
+    std::copy(inner_.begin(), inner_.end(), M.innerIndexPtr());
+    std::fill_n(M.valuePtr(), M.nonZeros(), 0.0);
+  }
+  Eigen::Index nonzeros() const { return static_cast<Eigen::Index>(inner_.size()); }
+  /// Compressed-column indices: column j's rows are inner_index()[outer_index()[j] ..
+  /// outer_index()[j + 1]), ascending.
+  const int* outer_index() const { return outer_.data(); }
+  const int* inner_index() const { return inner_.data(); }
   /// Unique to this structure, across all patterns (a new symbolic factorization is due).
   long generation() const { return generation_; }
   double mean_adjacency() const {
@@ -150,7 +166,7 @@ class SystemPattern {
   int n_nodes_ = 0, n_ = 0;
   long generation_ = 0;
   std::vector<int> adj_offset_{0}, adj_;
-  Matrix A_;
+  std::vector<int> outer_{0}, inner_;
 };
 
 /// Gauss-point state after an assembly (for post-processing and the tests).
