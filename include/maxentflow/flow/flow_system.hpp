@@ -241,7 +241,8 @@ class FlowSystem {
   /// For the iterate of a solve from rest, whose viscosity was uniform
   /// (mu(d_min)): that system's velocity does not depend on the viscosity's
   /// value (tau ~ 1/mu keeps Eq. (21) homogeneous in it), its pressure and
-  /// multipliers scale with it, ~1e4 times those of the flow's own viscosity.
+  /// multipliers scale with it (~1e5 times those of the flow's viscosity on
+  /// bench_flow's block).
   /// Scales them by the c that minimizes the momentum residual at X (affine
   /// in c) and returns c; leaves X and returns 1 where that does not lower
   /// |R|. The next solve's right-hand side is then the flow's, not mu(d_min)'s
