@@ -120,6 +120,68 @@ TEST_CASE("matrix-free tangent, axisymmetric: the assembled Newton matrix's prod
   P.system->assemble(X, Linearization::newton, A, R);
   P.system->apply_tangent(X, v, Jv);
   CHECK((Jv - A * v).norm() <= 1e-12 * (A * v).norm());
+  // The Picard matrix's product, from the same point operators.
+  const Eigen::VectorXd Newton_v = Jv;
+  P.system->assemble(X, Linearization::picard, A, R);
+  P.system->apply_tangent(X, v, Jv, Linearization::picard);
+  CHECK((Jv - A * v).norm() <= 1e-12 * (A * v).norm());
+  CHECK((Newton_v - A * v).norm() > 1e-3 * (A * v).norm());  // n = 0.2: the two differ
+}
+
+namespace {
+// FlowSystem, counting its matrix assemblies.
+struct CountingSystem {
+  FlowSystem<NortonHoff>& s;
+  int assemblies = 0;
+  int size() { return s.size(); }
+  long structure_generation() { return s.structure_generation(); }
+  void assemble(const Eigen::VectorXd& X, Linearization k, SystemPattern::Matrix& A, Eigen::VectorXd& R) {
+    ++assemblies;
+    s.assemble(X, k, A, R);
+  }
+  void residual(const Eigen::VectorXd& X, Eigen::VectorXd& R) { s.residual(X, R); }
+  double relative_residual(const Eigen::VectorXd& R) const { return s.relative_residual(R); }
+  double velocity_norm(const Eigen::VectorXd& X) const { return s.velocity_norm(X); }
+  void assemble_preconditioner(const Eigen::VectorXd& X, SystemPattern::Matrix& P) { s.assemble_preconditioner(X, P); }
+  long preconditioner_generation() { return s.preconditioner_generation(); }
+  const DofLayout& layout() { return s.layout(); }
+  void apply_tangent(const Eigen::VectorXd& X, const Eigen::VectorXd& v, Eigen::VectorXd& Jv,
+                     Linearization k = Linearization::newton) {
+    s.apply_tangent(X, v, Jv, k);
+  }
+};
+static_assert(MatrixFreePicardSystem<CountingSystem>);
+}  // namespace
+
+TEST_CASE("warm-started Picard iterations that a kept LU serves assemble no matrix; the same solution",
+          "[flow][solver][gmres]") {
+  auto Pd = compression(0.2);
+  Eigen::VectorXd X_direct;
+  NonlinearSolver<> direct;
+  REQUIRE(direct.solve(*Pd.system, X_direct).converged);
+
+  NonlinearSolverParams prm;
+  prm.newton_from_warm_start = false;  // as the extrusion and cutting examples: Picard first
+  NonlinearSolver<GmresSolver<>> s(prm);
+  auto P = compression(0.2);
+  CountingSystem sys{*P.system};
+  Eigen::VectorXd X;
+  REQUIRE(s.solve(sys, X).converged);
+  // Warm starts 5 % off: Picard (kept Picard LU), then Newton (kept Newton LU).
+  for (int solve = 0; solve < 2; ++solve) {
+    CAPTURE(solve);
+    X = (1.0 + 0.05 * (solve + 1)) * X_direct;
+    sys.assemblies = 0;
+    const SolveReport r = s.solve(sys, X);
+    INFO(r.log());
+    REQUIRE(r.converged);
+    CHECK(r.picard >= 2);
+    CHECK(r.direct_fallbacks == 0);
+    // Only the matrices of the LUs made: none for the other iterations.
+    CHECK(sys.assemblies == r.preconditioner_updates);
+    CHECK(sys.assemblies < r.picard + r.newton);
+    CHECK((X - X_direct).lpNorm<Eigen::Infinity>() <= 1e-6 * X_direct.lpNorm<Eigen::Infinity>());
+  }
 }
 
 TEST_CASE("Newton with the kept LU: the direct solution; the LU kept for one layout, made again for another",

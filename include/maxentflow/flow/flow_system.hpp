@@ -206,8 +206,10 @@ class FlowSystem {
   }
 
   /// Jv = J(X) v, J Newton's tangent (the matrix assemble() builds with
-  /// Linearization::newton), without forming it: a residual's cost.
-  void apply_tangent(const Eigen::VectorXd& X, const Eigen::VectorXd& v, Eigen::VectorXd& Jv) {
+  /// Linearization::newton), without forming it: a residual's cost; with
+  /// Linearization::picard, the Picard matrix's product.
+  void apply_tangent(const Eigen::VectorXd& X, const Eigen::VectorXd& v, Eigen::VectorXd& Jv,
+                     Linearization kind = Linearization::newton) {
     update_structure();
     require(X.size() == pattern_.size() && v.size() == pattern_.size(),
             detail::cat("X and v need ", pattern_.size(), " entries"), "FlowSystem::apply_tangent");
@@ -216,7 +218,7 @@ class FlowSystem {
       linearized_at_ = X;
     }
     Jv.setZero(pattern_.size());
-    assembler_.apply_tangent(v, Jv);
+    assembler_.apply_tangent(v, Jv, kind);
     add_multiplier_terms(v, false, Jv);
     const int nv = DofLayout::fields_of(number_of_nodes());
     for_each_traction_point(X, [&](const VelocityTractionTerm& term, const TractionGauss& g) {

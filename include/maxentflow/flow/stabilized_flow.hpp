@@ -232,9 +232,11 @@ class StabilizedFlowAssembler {
   void linearize(const Eigen::VectorXd& X);
   /// Jv += J v: the Newton tangent of the cell integrals at the X of the last
   /// linearize() (the matrix assemble() builds with Linearization::newton)
-  /// applied to v without forming it, at the cost of a residual evaluation.
-  /// Jv has size >= 3N.
-  void apply_tangent(const Eigen::VectorXd& v, Eigen::VectorXd& Jv) const;
+  /// applied to v without forming it, at the cost of a residual evaluation;
+  /// with Linearization::picard the Picard matrix's product (the same point
+  /// operators without the derivatives of mu and tau). Jv has size >= 3N.
+  void apply_tangent(const Eigen::VectorXd& v, Eigen::VectorXd& Jv,
+                     Linearization kind = Linearization::newton) const;
 
  private:
   static constexpr double two_thirds = 2.0 / 3.0;
@@ -557,7 +559,8 @@ void StabilizedFlowAssembler<Material>::linearize(const Eigen::VectorXd& X) {
 }
 
 template <ViscosityLaw Material>
-void StabilizedFlowAssembler<Material>::apply_tangent(const Eigen::VectorXd& v, Eigen::VectorXd& Jv) const {
+void StabilizedFlowAssembler<Material>::apply_tangent(const Eigen::VectorXd& v, Eigen::VectorXd& Jv,
+                                                      Linearization kind) const {
   const FlowDiscretization& disc = *disc_;
   const int N = disc.number_of_nodes();
   const bool axi = disc.axisymmetric();
@@ -567,6 +570,7 @@ void StabilizedFlowAssembler<Material>::apply_tangent(const Eigen::VectorXd& v, 
           "linearize(X) first", "StabilizedFlowAssembler::apply_tangent");
   require(v.size() >= nf * N && Jv.size() >= nf * N, "v and Jv need 3 entries per node",
           "StabilizedFlowAssembler::apply_tangent");
+  const double newton = kind == Linearization::newton ? 1.0 : 0.0;  // Picard drops mu' and tau'
   const int threads = std::max(1, std::min(max_threads(), N / 64 + 1));
 #pragma omp parallel num_threads(threads)
   {
@@ -590,6 +594,7 @@ void StabilizedFlowAssembler<Material>::apply_tangent(const Eigen::VectorXd& v, 
         const PointTangent& T = tangent_[static_cast<std::size_t>(g)];
         double qz = 0.0, div = 0.0;
         for (int k = 0; k < ns; ++k) qz += T.Qeps[k] * zv[k];
+        qz *= newton;
         for (int k = 0; k + 1 < ns; ++k) div += zv[k];
         for (int k = 0; k < ns; ++k) {
           const bool shear = k == ns - 1;

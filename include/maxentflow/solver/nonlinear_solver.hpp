@@ -55,6 +55,12 @@ concept LayoutKeyedSystem = NonlinearSystem<S> && requires(S& s, const Eigen::Ve
   { s.layout() } -> std::convertible_to<const DofLayout&>;
   s.apply_tangent(x, x, y);  // y = J(x) x: Newton's tangent applied matrix-free
 };
+/// ... and its Picard matrix too, so that a Picard iteration served by a kept
+/// LU assembles no matrix either.
+template <class S>
+concept MatrixFreePicardSystem = LayoutKeyedSystem<S> && requires(S& s, const Eigen::VectorXd& x, Eigen::VectorXd& y) {
+  s.apply_tangent(x, x, y, Linearization::picard);
+};
 
 /// Either kind of linear-solver policy: direct (LinearSolver) or Krylov
 /// with a preconditioner the system assembles (PreconditionedLinearSolver).
@@ -182,6 +188,8 @@ struct NonlinearSolverParams {
   /// Picard matrices differ little from the last step's, and with the
   /// companion each Picard solve took ~40 GMRES iterations, 3/4 of all of
   /// E2's (docs/method.md section 8). Solves from rest keep the companion.
+  /// Where the system applies its Picard matrix matrix-free
+  /// (MatrixFreePicardSystem), such an iteration assembles no matrix either.
   bool kept_lu_picard = true;
   int kept_lu_max_unknowns = 20000;
   std::ostream* log = nullptr;     ///< per-iteration log
@@ -248,8 +256,11 @@ class NonlinearSolver {
       const bool kept = use_kept_lu(sys, n) &&
                         (kind == Linearization::newton || (prm_.kept_lu_picard && warm_start_));
       auto t0 = clock::now();
-      // A Picard iteration's GMRES applies the assembled matrix.
-      const bool assembled = !(kept && kind == Linearization::newton && kept_lu_current(linear_, n));
+      // An iteration the kept LU serves applies its matrix matrix-free (a
+      // Picard one where the system can): only the residual is evaluated.
+      const bool newton = kind == Linearization::newton;
+      const bool assembled = !(kept && (newton || MatrixFreePicardSystem<System>) &&
+                               kept_lu_current(newton ? linear_ : picard_linear_, n));
       if (assembled)
         sys.assemble(X, kind, A_, R);
       else
@@ -460,8 +471,8 @@ class NonlinearSolver {
   // One direction: GMRES on J dx = -R, preconditioned by the kept LU of
   // this kind (made from the matrix assembled at X when there is none for
   // this layout, or when it no longer brings GMRES below the tolerance in
-  // kept_lu_iterations). Newton applies the tangent matrix-free; Picard
-  // applies its assembled matrix (A_).
+  // kept_lu_iterations). GMRES applies A_ where this iteration assembled
+  // it, else the system's matrix-free product of this kind.
   template <class System>
   Eigen::VectorXd kept_lu_direction(System& sys, const Eigen::VectorXd& X, const Eigen::VectorXd& R,
                                     double res, Linearization kind, bool assembled, SolveReport& rep,
@@ -503,13 +514,18 @@ class NonlinearSolver {
     const double eta = std::max(res, 0.5 * prm_.residual_tol / std::max(res, 1e-300));
     const double cap = newton ? std::min(prm_.eta_max, prm_.eta_kept_lu) : prm_.eta_picard_warm;
     L.set_tolerance(std::clamp(eta, prm_.eta_min, cap));
+    // The assembled matrix where this iteration has it (a sparse product is
+    // cheaper than a matrix-free one), else the system's matrix-free product.
     auto op = [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-      if (newton) {
-        sys.apply_tangent(X, v, Jv_);
-        return Jv_;
+      if (assembled) {
+        column_product(A_, v, Av_, product_part_);
+        return Av_;
       }
-      column_product(A_, v, Av_, product_part_);
-      return Av_;
+      if constexpr (MatrixFreePicardSystem<System>)
+        sys.apply_tangent(X, v, Jv_, kind);
+      else
+        sys.apply_tangent(X, v, Jv_);
+      return Jv_;
     };
     const int max_its = prm_.kept_lu_iterations;
     auto t0 = clock::now();
