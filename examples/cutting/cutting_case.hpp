@@ -44,6 +44,8 @@ inline Stepper<NortonHoff> make_cutting(const CuttingSetup& s) {
   prm.adapt.enabled = s.rezone;
   prm.solver.newton_from_warm_start = false;
   prm.solver.switch_increment = 0.1;
+  // As E2's: kept-LU Newton solves to eta_max (docs/method.md, section 8).
+  prm.solver.eta_kept_lu = prm.solver.eta_max;
   Stepper<NortonHoff> sim(x, NortonHoff(s.mu0, s.n, s.d_min * s.V / s.t0), prm);
   RigidTool tool = cutting_tool("tool", s.tip_start(), s.rake, s.clearance, s.edge_radius, 8 * s.t0);
   tool.set_velocity({-s.V, 0});
