@@ -7,8 +7,10 @@
 
 #include "../support/clouds.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <vector>
 
 using maxentflow::Error;
 using maxentflow::MaxEntBasis;
@@ -165,6 +167,80 @@ TEST_CASE("Support cut-off: only nodes within h sqrt(-ln tol0 / gamma)", "[basis
     if ((cloud.nodes.col(a) - x).norm() <= R) ++inside;
   CHECK(static_cast<int>(e.node.size()) == inside);
   for (int a : e.node) CHECK((cloud.nodes.col(a) - x).norm() <= R);
+}
+
+TEST_CASE("Support search: every point's support is exactly the nodes whose radius reaches it",
+          "[basis]") {
+  // Graded spacing (1:5) and per-node gamma: radii vary by ~8x, so the grid's
+  // cells (half the median radius) see nodes registered from many cells away.
+  const auto cloud = maxentflow::test::grid_cloud("graded", 25);
+  Eigen::VectorXd gamma(cloud.nodes.cols());
+  for (Eigen::Index a = 0; a < gamma.size(); ++a) gamma(a) = 0.8 + 1.6 * cloud.nodes(0, a);
+  const MaxEntBasis<2> basis(cloud.nodes, cloud.h, gamma);
+  const Eigen::Matrix2Xd x = maxentflow::test::random_points(3000, 0.0, 1.0, 5);
+  const auto t = basis.evaluate(x, false);
+  int mismatches = 0;
+  for (int i = 0; i < x.cols(); ++i) {
+    std::vector<int> expected;
+    for (Eigen::Index a = 0; a < cloud.nodes.cols(); ++a)
+      if ((cloud.nodes.col(a) - x.col(i)).norm() <= basis.support_radius()(a)) expected.push_back(static_cast<int>(a));
+    const auto got = t.nodes(i);
+    if (!std::equal(got.begin(), got.end(), expected.begin(), expected.end())) ++mismatches;
+  }
+  CHECK(mismatches == 0);
+}
+
+TEST_CASE("The dual's vectorized exp is exp to within 2 ulp", "[basis]") {
+  double worst = 0;
+  for (double x = -708.0; x <= 709.0; x += 0.0173) {
+    const double e = std::exp(x);
+    worst = std::max(worst, std::abs(maxentflow::detail::exp_kernel(x) - e) / e);
+  }
+  for (double x = -1e-3; x <= 1e-3; x += 1.7e-7) {  // near 0: the small arguments of Newton's last steps
+    const double e = std::exp(x);
+    worst = std::max(worst, std::abs(maxentflow::detail::exp_kernel(x) - e) / e);
+  }
+  CHECK(worst <= 2 * std::numeric_limits<double>::epsilon());
+  CHECK(std::isnan(maxentflow::detail::exp_kernel(std::numeric_limits<double>::quiet_NaN())));
+}
+
+TEST_CASE("The dual solve's small-step weight updates give the weights of a fresh evaluation", "[basis]") {
+  // Newton's last steps update the weights by a Taylor polynomial of
+  // exp(step . (x - x_a)); the p they leave must be those of Eq. (5) at the
+  // final lambda, evaluated from scratch.
+  const auto cloud = grid_cloud("perturbed", 15);
+  const double gamma = 1.6, R = cloud.h0 * std::sqrt(-std::log(1e-6) / gamma);
+  const Eigen::Matrix2Xd x = maxentflow::test::random_points(200, 0.2, 0.8, 9);
+  double worst_p = 0, worst_r = 0;
+  int iterations = 0;
+  for (int i = 0; i < x.cols(); ++i) {
+    maxentflow::detail::DualWorkspace<2> ws;
+    ws.reserve(cloud.nodes.cols());
+    int m = 0;
+    for (Eigen::Index a = 0; a < cloud.nodes.cols(); ++a) {
+      const Eigen::Vector2d d = x.col(i) - cloud.nodes.col(a);
+      if (d.norm() > R) continue;
+      const double beta = gamma / (cloud.h0 * cloud.h0);
+      ws.dx[0](m) = d(0);
+      ws.dx[1](m) = d(1);
+      ws.beta(m) = beta;
+      ws.q(m) = -beta * d.squaredNorm();
+      ++m;
+    }
+    const auto res = maxentflow::detail::solve_dual<2>(ws, m, Eigen::Vector2d::Zero(), 1e-13 * cloud.h0, 100);
+    REQUIRE(res.status == maxentflow::detail::DualStatus::converged);
+    iterations += res.iterations;
+    const Eigen::ArrayXd p = ws.p.head(m);
+    Eigen::Vector2d r;
+    Eigen::Matrix2d J;
+    maxentflow::detail::evaluate_dual<2>(ws, m, res.lambda, r, J);  // from scratch
+    const Eigen::ArrayXd fresh = ws.p.head(m) / ws.Z;
+    worst_p = std::max(worst_p, ((p - fresh).abs() / fresh.maxCoeff()).maxCoeff());
+    worst_r = std::max(worst_r, (r - res.r).norm() / cloud.h0);
+  }
+  CHECK(iterations >= 3 * x.cols());  // the small-step updates did run
+  CHECK(worst_p <= 1e-14);
+  CHECK(worst_r <= 1e-14);
 }
 
 TEST_CASE("Bad input raises maxentflow::Error with what and where", "[basis][errors]") {

@@ -298,7 +298,7 @@ class MaxEntBasis {
       const Point xa = nodes_.col(a);
       const auto cand = grid_.candidates(grid_.cell_of(xa));
       for (int i = 0; i < cand.size && cand.node[i] < a; ++i) {  // candidates ascend
-        const double tol = 1e-10 * std::min(h_(a), cand.h[i]);
+        const double tol = 1e-10 * std::min(h_(a), h_(cand.node[i]));
         if ((nodes_.col(cand.node[i]) - xa).squaredNorm() <= tol * tol)
           throw Error(detail::cat("coincident nodes ", cand.node[i], " and ", a), where_node(a));
       }
@@ -367,7 +367,10 @@ class MaxEntBasis {
       node[m] = i;
       m += d2 <= c.r2[i] ? 1 : 0;
     }
-    double h_ref = std::numeric_limits<double>::infinity(), d_near = h_ref;
+    // Then their data; the nearest node (its spacing scales the tolerances)
+    // is found without a branch per entry.
+    double d_near = std::numeric_limits<double>::infinity();
+    int j_near = -1;
     for (int j = 0; j < m; ++j) {
       const int i = node[j];
       double d2 = 0;
@@ -376,16 +379,17 @@ class MaxEntBasis {
         ws.dual.dx[k](j) = d;
         d2 += d * d;
       }
-      ws.dual.beta(j) = c.beta[i];
-      ws.dual.q(j) = -c.beta[i] * d2;  // the prior's exponent
-      node[j] = c.node[i];
-      if (d2 < d_near) {  // the nearest node's spacing scales the tolerances
-        d_near = d2;
-        h_ref = c.h[i];
-      }
+      const int a = c.node[i];
+      const double beta = c.node_beta[a];
+      ws.dual.beta(j) = beta;
+      ws.dual.q(j) = -beta * d2;  // the prior's exponent
+      node[j] = a;
+      const bool nearer = d2 < d_near;
+      d_near = nearer ? d2 : d_near;
+      j_near = nearer ? j : j_near;
     }
     ws.support.resize(static_cast<std::size_t>(m));
-    ws.last_h_ref = std::isfinite(h_ref) ? h_ref : h_min_;
+    ws.last_h_ref = j_near >= 0 ? c.node_h[node[j_near]] : h_min_;
     return m;
   }
 
@@ -552,23 +556,66 @@ class MaxEntBasis {
   // nearly singular (next to the hull), instead of to |J^-1 r|.
   // Returns d lambda* / dx = J^-1 (J_b - I), which warm-starts the next point.
   Tensor gradients_into(Workspace& ws, int m, const Point& r, const Tensor& J) const {
-    const auto p = ws.dual.p.head(m);
-    const auto bp = 2.0 * ws.dual.beta.head(m) * p;  // an expression: no temporary
+    const double* p = ws.dual.p.data();
+    const double* beta = ws.dual.beta.data();
+    const double* x0 = ws.dual.dx[0].data();
+    const double* x1 = ws.dual.dx[Dim > 1 ? 1 : 0].data();
+    const double* x2 = ws.dual.dx[Dim > 2 ? 2 : 0].data();
+    // rb and Jb in one vectorized pass.
+    double r0 = 0, r1 = 0, r2 = 0, J00 = 0, J01 = 0, J02 = 0, J11 = 0, J12 = 0, J22 = 0;
+#pragma omp simd reduction(+ : r0, r1, r2, J00, J01, J02, J11, J12, J22)
+    for (int j = 0; j < m; ++j) {
+      const double bp = 2.0 * beta[j] * p[j], a = bp * x0[j];
+      r0 += a;
+      J00 += a * x0[j];
+      if constexpr (Dim > 1) {
+        const double b = bp * x1[j];
+        r1 += b;
+        J01 += a * x1[j];
+        J11 += b * x1[j];
+        if constexpr (Dim > 2) {
+          const double c = bp * x2[j];
+          r2 += c;
+          J02 += a * x2[j];
+          J12 += b * x2[j];
+          J22 += c * x2[j];
+        }
+      }
+    }
+    const double rb_all[3] = {r0, r1, r2};
+    const double Jb_all[3][3] = {{J00, J01, J02}, {J01, J11, J12}, {J02, J12, J22}};
     Point rb;
     Tensor Jb;
     for (int k = 0; k < Dim; ++k) {
-      rb(k) = (bp * ws.dual.dx[k].head(m)).sum();
-      for (int l = k; l < Dim; ++l)
-        Jb(k, l) = Jb(l, k) = (bp * ws.dual.dx[k].head(m) * ws.dual.dx[l].head(m)).sum();
+      rb(k) = rb_all[k];
+      for (int l = 0; l < Dim; ++l) Jb(k, l) = Jb_all[k][l];
     }
     const Tensor M = (Jb - Tensor::Identity()) * J.inverse();
+    // grad_k p_j = p_j (rb_k - 2 beta_j dx_kj + sum_l M_kl (dx_lj - r_l)), as
+    // p_j ((rb - M r)_k + sum_l (M_kl - 2 beta_j delta_kl) dx_lj).
+    const Point c = rb - M * r;
     ws.grad.resize(static_cast<std::size_t>(m) * Dim);
     double* g = ws.grad.data();
+    const double M00 = M(0, 0), M01 = Dim > 1 ? M(0, Dim > 1 ? 1 : 0) : 0.0,
+                 M02 = Dim > 2 ? M(0, Dim > 2 ? 2 : 0) : 0.0;
+    const double M10 = Dim > 1 ? M(Dim > 1 ? 1 : 0, 0) : 0.0, M11 = Dim > 1 ? M(Dim > 1 ? 1 : 0, Dim > 1 ? 1 : 0) : 0.0,
+                 M12 = Dim > 2 ? M(Dim > 1 ? 1 : 0, Dim > 2 ? 2 : 0) : 0.0;
+    const double M20 = Dim > 2 ? M(Dim > 2 ? 2 : 0, 0) : 0.0, M21 = Dim > 2 ? M(Dim > 2 ? 2 : 0, Dim > 1 ? 1 : 0) : 0.0,
+                 M22 = Dim > 2 ? M(Dim > 2 ? 2 : 0, Dim > 2 ? 2 : 0) : 0.0;
+    const double c0 = c(0), c1 = Dim > 1 ? c(Dim > 1 ? 1 : 0) : 0.0, c2 = Dim > 2 ? c(Dim > 2 ? 2 : 0) : 0.0;
+#pragma omp simd
     for (int j = 0; j < m; ++j) {
-      Point dx;
-      for (int k = 0; k < Dim; ++k) dx(k) = ws.dual.dx[k](j);
-      const Point gj = p(j) * (rb - 2.0 * ws.dual.beta(j) * dx + M * (dx - r));
-      for (int k = 0; k < Dim; ++k) g[static_cast<std::size_t>(j) * Dim + k] = gj(k);
+      const double tb = 2.0 * beta[j], pj = p[j];
+      if constexpr (Dim == 1) {
+        g[j] = pj * (c0 + (M00 - tb) * x0[j]);
+      } else if constexpr (Dim == 2) {
+        g[2 * j] = pj * (c0 + (M00 - tb) * x0[j] + M01 * x1[j]);
+        g[2 * j + 1] = pj * (c1 + M10 * x0[j] + (M11 - tb) * x1[j]);
+      } else {
+        g[3 * j] = pj * (c0 + (M00 - tb) * x0[j] + M01 * x1[j] + M02 * x2[j]);
+        g[3 * j + 1] = pj * (c1 + M10 * x0[j] + (M11 - tb) * x1[j] + M12 * x2[j]);
+        g[3 * j + 2] = pj * (c2 + M20 * x0[j] + M21 * x1[j] + (M22 - tb) * x2[j]);
+      }
     }
     return M.transpose();
   }

@@ -247,7 +247,7 @@ class FlowSystem {
   /// bench_flow's block).
   /// Scales them by the c that minimizes the momentum residual at X (affine
   /// in c) and returns c; leaves X and returns 1 where that does not lower
-  /// |R|. The next solve's right-hand side is then the flow's, not mu(d_min)'s
+  /// |R| or c is 1 to within 1e-6. The next solve's right-hand side is then the flow's, not mu(d_min)'s
   /// pressure left over, which a Krylov solve would have to cancel to ~1e-8.
   double rescale_stresses(Eigen::VectorXd& X) {
     update_structure();
@@ -272,7 +272,9 @@ class FlowSystem {
     const Eigen::VectorXd b = R1 - R0;
     const double bb = momentum_dot(b, b);
     const double c = bb > 0 ? -momentum_dot(R0, b) / bb : 1.0;
-    if (c > 0 && c != 1.0) {
+    // A factor within 1e-6 of 1 is round-off of a stress scale that is right
+    // already (a Newtonian flow's iterate from rest): nothing to rescale.
+    if (c > 0 && std::abs(c - 1.0) > 1e-6) {
       Eigen::VectorXd Y = scaled(c);
       residual(Y, Rc);
       if (momentum_dot(Rc, Rc) < momentum_dot(R1, R1)) {

@@ -17,9 +17,11 @@
 namespace maxentflow::detail {
 
 /// Uniform cell grid over the nodes' bounding box. Node a is registered in every
-/// cell its support box [x_a - R_a, x_a + R_a] overlaps, so a query is one cell
-/// lookup plus a distance filter, and node-dependent radii (graded clouds) cost
-/// nothing extra. Cells also know where the convex hull is: cells that meet a hull
+/// cell its support disc |x - x_a| <= R_a meets, so a query is one cell lookup
+/// plus a distance filter, and node-dependent radii (graded clouds) cost nothing
+/// extra. Cells are half the median radius wide: a query then filters about
+/// (pi + 2 + 1/4) (R/h)^2 candidates (46 at R = 2.94 h) instead of the 9 (R/h)^2
+/// (78) of cells a radius wide that register whole support boxes. Cells also know where the convex hull is: cells that meet a hull
 /// facet carry the facet list; the other cells are wholly inside or wholly outside.
 template <int D>
 class SupportGrid {
@@ -27,14 +29,15 @@ class SupportGrid {
   using Point = Eigen::Matrix<double, D, 1>;
   enum class Cell : std::uint8_t { interior, boundary, exterior };
   /// The nodes a cell sees, as parallel arrays (a query's distance filter runs
-  /// over them in SIMD lanes): coordinates, support radius squared, beta, h, index.
+  /// over them in SIMD lanes): coordinates, support radius squared, index; and
+  /// beta and h of every node, by node index.
   struct Candidates {
     std::array<const double*, D> x;
     const double* r2;
-    const double* beta;
-    const double* h;
     const int* node;
     int size;
+    const double* node_beta;
+    const double* node_h;
   };
 
   SupportGrid() = default;
@@ -46,7 +49,7 @@ class SupportGrid {
     const Eigen::Index N = nodes.cols();
     lo_ = nodes.rowwise().minCoeff();
     hi_ = nodes.rowwise().maxCoeff();
-    // Cell size: the median finite support radius, grown if the grid would be huge.
+    // Cell size: half the median finite support radius, grown if the grid would be huge.
     std::vector<double> finite;
     finite.reserve(static_cast<std::size_t>(N));
     for (Eigen::Index a = 0; a < N; ++a)
@@ -56,7 +59,7 @@ class SupportGrid {
     if (!finite.empty()) {
       auto mid = finite.begin() + static_cast<std::ptrdiff_t>(finite.size() / 2);
       std::nth_element(finite.begin(), mid, finite.end());
-      size = std::min(extent, *mid);
+      size = std::min(extent, 0.5 * *mid);
     }
     const double max_cells = 4.0 * static_cast<double>(N) + 64.0;
     for (;;) {
@@ -81,15 +84,18 @@ class SupportGrid {
         const auto n = static_cast<std::size_t>(start_[total_]);
         for (auto& v : x_) v.resize(n);
         r2_.resize(n);
-        beta_.resize(n);
-        h_.resize(n);
         node_.resize(n);
         fill.assign(start_.begin(), start_.end() - 1);
       }
       for (Eigen::Index a = 0; a < N; ++a) {
         std::array<int, D> first, last;
-        box_cells(nodes.col(a), radius(a), first, last);
+        const Point xa = nodes.col(a);
+        box_cells(xa, radius(a), first, last);
+        // Slack: registration must not miss a node that the query's own
+        // floating-point distance test takes.
+        const double reach2 = radius(a) * radius(a) * (1.0 + 1e-12);
         for_each_cell(first, last, [&](int c) {
+          if (std::isfinite(reach2) && distance2_to_cell(xa, c) > reach2) return;
           if (pass == 0) {
             ++start_[c + 1];
             return;
@@ -97,12 +103,12 @@ class SupportGrid {
           const auto i = static_cast<std::size_t>(fill[c]++);
           for (int k = 0; k < D; ++k) x_[k][i] = nodes(k, a);
           r2_[i] = radius(a) * radius(a);
-          beta_[i] = beta(a);
-          h_[i] = h(a);
           node_[i] = static_cast<int>(a);
         });
       }
     }
+    beta_.assign(beta.data(), beta.data() + N);
+    h_.assign(h.data(), h.data() + N);
     classify(hull, hull_pad);
   }
 
@@ -123,10 +129,10 @@ class SupportGrid {
     Candidates out;
     for (int k = 0; k < D; ++k) out.x[k] = x_[k].data() + i;
     out.r2 = r2_.data() + i;
-    out.beta = beta_.data() + i;
-    out.h = h_.data() + i;
     out.node = node_.data() + i;
     out.size = start_[c + 1] - start_[c];
+    out.node_beta = beta_.data();
+    out.node_h = h_.data();
     return out;
   }
 
@@ -148,6 +154,21 @@ class SupportGrid {
   std::size_t registrations() const { return node_.size(); }
 
  private:
+  // Squared distance from x to cell c; the border cells reach out to infinity
+  // (queries just outside the bounding box fall in them).
+  double distance2_to_cell(const Point& x, int c) const {
+    double d2 = 0;
+    for (int k = 0; k < D; ++k) {
+      const int i = (c / stride_[k]) % n_[k];
+      const double lo = lo_(k) + i * size_, hi = lo_(k) + (i + 1) * size_;
+      double d = 0;
+      if (x(k) < lo && i > 0) d = lo - x(k);
+      if (x(k) > hi && i < n_[k] - 1) d = x(k) - hi;
+      d2 += d * d;
+    }
+    return d2;
+  }
+
   void box_cells(const Point& x, double r, std::array<int, D>& first, std::array<int, D>& last) const {
     for (int k = 0; k < D; ++k) {
       if (!std::isfinite(r)) {
@@ -243,8 +264,9 @@ class SupportGrid {
   int total_ = 0;
   std::vector<int> start_;
   std::array<std::vector<double>, D> x_;
-  std::vector<double> r2_, beta_, h_;
+  std::vector<double> r2_;
   std::vector<int> node_;
+  std::vector<double> beta_, h_;  // by node
   std::vector<Cell> status_;
   std::vector<int> facet_start_, facet_entries_;
 };
