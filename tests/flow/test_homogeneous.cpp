@@ -2,7 +2,9 @@
 // and axisymmetric upsetting are reproduced to round-off on one configuration.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "../support/flow_problems.hpp"
 
@@ -84,4 +86,30 @@ TEST_CASE("plain Gauss quadrature fails the patch test that consistent integrati
        << consistent.max_v_error << ", " << consistent.max_p_error << ", " << consistent.force_error);
   CHECK(plain.max_v_error > 1e3 * consistent.max_v_error);
   CHECK(consistent.max_v_error < 1e-8);
+}
+
+TEST_CASE("the discretization keeps the edge basis of boundary edges only, as evaluated", "[flow]") {
+  FlowProblem<NortonHoff> P(block_nodes(11, 13, 10, 12, true), Geometry::plane_strain, NortonHoff(150.0, 0.2, 1e-8));
+  const auto& tab = P.disc.edge_basis();
+  const int ne = P.disc.points_per_edge();
+  const auto fresh = P.basis->evaluate(P.disc.edge_points(), false);
+  REQUIRE(tab.size() == fresh.size());
+  std::vector<char> boundary(P.mesh.edges().size(), 0);
+  for (const auto& seg : P.mesh.boundary_segments()) boundary[static_cast<std::size_t>(seg.edge)] = 1;
+  int interior_with_entries = 0, boundary_different = 0, boundary_points = 0;
+  for (int i = 0; i < tab.size(); ++i) {
+    if (!boundary[static_cast<std::size_t>(i / ne)]) {
+      interior_with_entries += tab.count(i) > 0 ? 1 : 0;
+      continue;
+    }
+    ++boundary_points;
+    const auto n0 = tab.nodes(i), n1 = fresh.nodes(i);
+    const auto v0 = tab.values(i), v1 = fresh.values(i);
+    if (!std::equal(n0.begin(), n0.end(), n1.begin(), n1.end()) || !std::equal(v0.begin(), v0.end(), v1.begin(), v1.end()))
+      ++boundary_different;
+  }
+  CHECK(boundary_points == static_cast<int>(P.mesh.boundary_segments().size()) * ne);
+  CHECK(interior_with_entries == 0);
+  CHECK(boundary_different == 0);
+  CHECK(tab.entries() < fresh.entries() / 2);  // the memory went
 }

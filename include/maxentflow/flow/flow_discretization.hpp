@@ -97,6 +97,10 @@ class FlowDiscretization {
   const Eigen::VectorXd& edge_weights() const { return edge_w_; }
   /// Parameter s in [0, 1] of edge point k along its edge (from edge.a).
   double edge_parameter(int k) const { return segment_rule(prm_.segment_points).t[k]; }
+  /// The basis at the Gauss points of the boundary edges (point k of mesh
+  /// edge e is e * points_per_edge() + k). Interior edges' points have no
+  /// entries once built: their basis served the gradient correction only
+  /// (kept, it was 7 % of the memory of bench_flow's 64k-node solve).
   const BasisTable<2>& edge_basis() const { return edge_basis_; }
 
   /// max over nodes of |sum_q w_q grad p_a - int_dOmega p_a n| relative to the
@@ -112,6 +116,7 @@ class FlowDiscretization {
                    const Eigen::VectorXd& h);
   void correct_gradients(int t, const std::vector<int>& u, const Mesh& mesh, const Eigen::VectorXd& wq_of,
                          double measure, std::vector<double>& boundary_integral);
+  void keep_boundary_edge_basis(const Mesh& mesh);
 
   params prm_;
   Geometry geometry_ = Geometry::plane_strain;
@@ -180,6 +185,32 @@ inline void FlowDiscretization::build(const Mesh& mesh, const Basis& basis, Geom
       if (prm_.consistent_integration) correct_gradients(t, u, mesh, cq.w, measure, boundary_integral);
     }
   }
+  keep_boundary_edge_basis(mesh);
+}
+
+inline void FlowDiscretization::keep_boundary_edge_basis(const Mesh& mesh) {
+  std::vector<char> boundary(mesh.edges().size(), 0);
+  for (const auto& seg : mesh.boundary_segments()) boundary[static_cast<std::size_t>(seg.edge)] = 1;
+  const BasisTable<2>& all = edge_basis_;
+  BasisTable<2> kept;
+  const int np = all.size();
+  kept.offset.resize(static_cast<std::size_t>(np) + 1);
+  kept.offset[0] = 0;
+  for (int i = 0; i < np; ++i)
+    kept.offset[static_cast<std::size_t>(i) + 1] =
+        kept.offset[static_cast<std::size_t>(i)] + (boundary[static_cast<std::size_t>(i / ne_)] ? all.count(i) : 0);
+  kept.node.resize(static_cast<std::size_t>(kept.offset.back()));
+  kept.p.resize(kept.node.size());
+  for (int i = 0; i < np; ++i) {
+    if (!boundary[static_cast<std::size_t>(i / ne_)]) continue;
+    std::copy_n(all.node.data() + all.offset[static_cast<std::size_t>(i)], all.count(i),
+                kept.node.data() + kept.offset[static_cast<std::size_t>(i)]);
+    std::copy_n(all.p.data() + all.offset[static_cast<std::size_t>(i)], all.count(i),
+                kept.p.data() + kept.offset[static_cast<std::size_t>(i)]);
+  }
+  kept.iterations = all.iterations;
+  kept.on_hull = all.on_hull;
+  edge_basis_ = std::move(kept);
 }
 
 inline std::vector<std::vector<int>> FlowDiscretization::cell_unions(const Mesh& mesh,

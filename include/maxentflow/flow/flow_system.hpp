@@ -342,14 +342,7 @@ class FlowSystem {
   std::vector<std::pair<int, int>> constraint_positions(const SystemPattern& pat) const {
     const int nv = DofLayout::fields_of(number_of_nodes());
     std::vector<std::pair<int, int>> pos;
-    const int* outer = pat.outer_index();
-    const int* inner = pat.inner_index();
-    auto position = [&](int row, int col) {
-      const int* b = inner + outer[col];
-      const int* e = inner + outer[col + 1];
-      const int* it = std::lower_bound(b, e, row);
-      return static_cast<int>(it - inner);
-    };
+    auto position = [&](int row, int col) { return pat.position(row, col); };
     const auto& rows = constraints_.rows();
     for (std::size_t i = 0; i < rows.size(); ++i) {
       const int li = nv + static_cast<int>(i);

@@ -90,39 +90,29 @@ class SystemPattern {
     const int m = static_cast<int>(rows.size());
     n_ = nv + m;
     // multiplier rows per velocity/pressure column
-    std::vector<int> extra(static_cast<std::size_t>(nv) + 1, 0);
+    extra_.assign(static_cast<std::size_t>(nv) + 1, 0);
     for (const auto& r : rows)
-      for (int d : r.dof) ++extra[static_cast<std::size_t>(d) + 1];
-    for (int j = 0; j < nv; ++j) extra[j + 1] += extra[j];
-    std::vector<int> extra_row(static_cast<std::size_t>(extra.back()));
+      for (int d : r.dof) ++extra_[static_cast<std::size_t>(d) + 1];
+    for (int j = 0; j < nv; ++j) extra_[j + 1] += extra_[j];
+    extra_row_.resize(static_cast<std::size_t>(extra_.back()));
     {
-      std::vector<int> pos(extra.begin(), extra.end() - 1);
+      std::vector<int> pos(extra_.begin(), extra_.end() - 1);
       for (int i = 0; i < m; ++i)
         for (int d : rows[static_cast<std::size_t>(i)].dof)
-          extra_row[static_cast<std::size_t>(pos[d]++)] = nv + i;
+          extra_row_[static_cast<std::size_t>(pos[d]++)] = nv + i;
     }
     std::vector<int>& outer = outer_;
     outer.assign(static_cast<std::size_t>(n_) + 1, 0);
     for (int b = 0; b < n_nodes_; ++b)
       for (int c = 0; c < nf; ++c) {
         const int j = nf * b + c;
-        outer[j + 1] = outer[j] + nf * (adj_offset_[b + 1] - adj_offset_[b]) + (extra[j + 1] - extra[j]);
+        outer[j + 1] = outer[j] + nf * (adj_offset_[b + 1] - adj_offset_[b]) + (extra_[j + 1] - extra_[j]);
       }
-    for (int i = 0; i < m; ++i)
-      outer[nv + i + 1] = outer[nv + i] + static_cast<int>(rows[static_cast<std::size_t>(i)].dof.size());
-    inner_.assign(static_cast<std::size_t>(outer.back()), 0);
-    int* inner = inner_.data();
-    for (int b = 0; b < n_nodes_; ++b)
-      for (int c = 0; c < nf; ++c) {
-        const int j = nf * b + c;
-        int k = outer[j];
-        for (int q = adj_offset_[b]; q < adj_offset_[b + 1]; ++q)
-          for (int cc = 0; cc < nf; ++cc) inner[k++] = nf * adj_[static_cast<std::size_t>(q)] + cc;
-        for (int q = extra[j]; q < extra[j + 1]; ++q) inner[k++] = extra_row[static_cast<std::size_t>(q)];
-      }
+    multiplier_inner_.clear();
     for (int i = 0; i < m; ++i) {
-      int k = outer[nv + i];
-      for (int d : rows[static_cast<std::size_t>(i)].dof) inner[k++] = d;
+      const auto& dof = rows[static_cast<std::size_t>(i)].dof;
+      outer[nv + i + 1] = outer[nv + i] + static_cast<int>(dof.size());
+      multiplier_inner_.insert(multiplier_inner_.end(), dof.begin(), dof.end());
     }
     generation_ = next_generation();
   }
@@ -132,8 +122,9 @@ class SystemPattern {
   /// Nodes coupled to node b (ascending).
   const int* adjacency_begin(int b) const { return adj_.data() + adj_offset_[b]; }
   const int* adjacency_end(int b) const { return adj_.data() + adj_offset_[b + 1]; }
-  /// A zeroed matrix with this structure (a new one each call: the pattern
-  /// keeps only the indices, a third of a matrix's memory).
+  /// A zeroed matrix with this structure. The pattern keeps node adjacency,
+  /// not the matrix's row indices (a third of a matrix's memory: 250 MB at
+  /// bench_flow's 64k nodes); they are written here.
   Matrix matrix() const {
     Matrix M;
     zero_matrix(M);
@@ -141,17 +132,51 @@ class SystemPattern {
   }
   /// M gets this structure with zero values.
   void zero_matrix(Matrix& M) const {
+    const int nf = DofLayout::per_node, nv = DofLayout::fields_of(n_nodes_);
     M.resize(n_, n_);
     M.resizeNonZeros(nonzeros());
     std::copy(outer_.begin(), outer_.end(), M.outerIndexPtr());
-    std::copy(inner_.begin(), inner_.end(), M.innerIndexPtr());
+    int* inner = M.innerIndexPtr();
+#pragma omp parallel for schedule(static)
+    for (int b = 0; b < n_nodes_; ++b)
+      for (int c = 0; c < nf; ++c) {
+        const int j = nf * b + c;
+        int k = outer_[j];
+        for (int q = adj_offset_[b]; q < adj_offset_[b + 1]; ++q)
+          for (int cc = 0; cc < nf; ++cc) inner[k++] = nf * adj_[static_cast<std::size_t>(q)] + cc;
+        for (int q = extra_[j]; q < extra_[j + 1]; ++q) inner[k++] = extra_row_[static_cast<std::size_t>(q)];
+      }
+    std::copy(multiplier_inner_.begin(), multiplier_inner_.end(), inner + outer_[nv]);
     std::fill_n(M.valuePtr(), M.nonZeros(), 0.0);
   }
-  Eigen::Index nonzeros() const { return static_cast<Eigen::Index>(inner_.size()); }
-  /// Compressed-column indices: column j's rows are inner_index()[outer_index()[j] ..
-  /// outer_index()[j + 1]), ascending.
+  Eigen::Index nonzeros() const { return outer_.back(); }
+  /// Compressed-column starts: column j's entries are [outer_index()[j], outer_index()[j + 1]).
   const int* outer_index() const { return outer_.data(); }
-  const int* inner_index() const { return inner_.data(); }
+  /// The value index of entry (row, col) in a matrix with this structure
+  /// (rows ascend in each column); -1 if the structure has no such entry.
+  int position(int row, int col) const {
+    const int nf = DofLayout::per_node, nv = DofLayout::fields_of(n_nodes_);
+    if (row < 0 || col < 0 || row >= n_ || col >= n_) return -1;
+    if (col >= nv) {  // a multiplier column: its row's dofs
+      const auto b = multiplier_inner_.begin() + (outer_[col] - outer_[nv]);
+      const auto e = multiplier_inner_.begin() + (outer_[col + 1] - outer_[nv]);
+      const auto it = std::lower_bound(b, e, row);
+      return it != e && *it == row ? outer_[col] + static_cast<int>(it - b) : -1;
+    }
+    const int node = col / nf;
+    if (row < nv) {  // a field row: the node's block in the column's adjacency
+      const int* b = adjacency_begin(node);
+      const int* e = adjacency_end(node);
+      const int* it = std::lower_bound(b, e, row / nf);
+      return it != e && *it == row / nf ? outer_[col] + nf * static_cast<int>(it - b) + row % nf : -1;
+    }
+    const auto b = extra_row_.begin() + extra_[col];
+    const auto e = extra_row_.begin() + extra_[col + 1];
+    const auto it = std::lower_bound(b, e, row);
+    return it != e && *it == row
+               ? outer_[col] + nf * (adj_offset_[node + 1] - adj_offset_[node]) + static_cast<int>(it - b)
+               : -1;
+  }
   /// Unique to this structure, across all patterns (a new symbolic factorization is due).
   long generation() const { return generation_; }
   double mean_adjacency() const {
@@ -166,7 +191,9 @@ class SystemPattern {
   int n_nodes_ = 0, n_ = 0;
   long generation_ = 0;
   std::vector<int> adj_offset_{0}, adj_;
-  std::vector<int> outer_{0}, inner_;
+  std::vector<int> outer_{0};
+  std::vector<int> extra_{0}, extra_row_;  // multiplier rows of each field column (CSR)
+  std::vector<int> multiplier_inner_;      // the multiplier columns' rows, in column order
 };
 
 /// Gauss-point state after an assembly (for post-processing and the tests).

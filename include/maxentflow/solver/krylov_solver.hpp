@@ -95,13 +95,14 @@ struct GmresParams {
 /// grows like N log N in 2-D. Measured (rows equilibrated): 10-70
 /// iterations per solve, independent of the thread count and of N from 1k
 /// to 64k nodes (benchmarks/flow). The companion's LU is MUMPS's where the
-/// build has it (DirectSolver): at 64k nodes 7.8 s of factorization against
-/// UMFPACK's 30 s, 2.5 against 3.0 GB peak, the same iterations.
+/// build has it, in single precision (CompanionLuSolver): at 64k nodes MUMPS
+/// in double took 7.8 s of factorization against UMFPACK's 30 s, 2.5 against
+/// 3.0 GB peak, the same iterations.
 /// Kept: the LU of full system matrices (the kept LU, the direct fallback),
 /// MUMPS with single-precision factors where the build has it (KeptLuSolver):
 /// GMRES corrects what a preconditioner leaves, and the fallback's solve is
 /// refined by GMRES too.
-template <LinearSolver Preconditioner = DirectSolver, LinearSolver Kept = KeptLuSolver>
+template <LinearSolver Preconditioner = CompanionLuSolver, LinearSolver Kept = KeptLuSolver>
 class GmresSolver {
  public:
   using Matrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
@@ -443,7 +444,9 @@ class GmresSolver {
       int j = 0;
       for (; j < m && last_iterations_ < max_iterations; ++j) {
         ++last_iterations_;
-        Z_.col(j) = pre(V_.col(j));  // kept: x is then a sum of Z's columns, no further solve
+        // Kept: x is then a sum of Z's columns, no further solve (and no
+        // solve with a single-precision LU, which is linear only to ~1e-7).
+        Z_.col(j) = pre(V_.col(j));
         w = op(Z_.col(j));
         // Classical Gram-Schmidt, repeated once ("twice is enough") for the
         // orthogonality a tight tolerance needs; as matrix-vector products,
