@@ -17,6 +17,26 @@ namespace maxentflow::detail {
 /// that every loop runs whole SIMD vectors (8 doubles: one AVX-512 register).
 inline constexpr int dual_lanes = 8;
 
+/// 1/k! for k = 0..17 (k! is exact in double up to 18!).
+inline constexpr std::array<double, 18> inverse_factorials = [] {
+  std::array<double, 18> c{};
+  double f = 1.0;
+  for (int k = 0; k < 18; ++k) {
+    if (k > 1) f *= k;
+    c[static_cast<std::size_t>(k)] = 1.0 / f;
+  }
+  return c;
+}();
+
+/// e^t by its Taylor polynomial of degree N, Horner's scheme.
+template <int N>
+inline double taylor_exp(double t) {
+  static_assert(N >= 1 && N < 18, "Taylor degree 1..17");
+  double e = inverse_factorials[N];
+  for (int k = N - 1; k >= 0; --k) e = e * t + inverse_factorials[static_cast<std::size_t>(k)];
+  return e;
+}
+
 /// exp(x) to within 1 ulp for x in [-708, 709] (clamped there; NaN stays NaN),
 /// written so that a loop over it vectorizes: x = k ln 2 + r, |r| <= ln(2)/2,
 /// e^r by its Taylor polynomial of degree 13 (truncation < 5e-18), 2^k by
@@ -30,20 +50,7 @@ inline double exp_kernel(double x) {
   const double k = t - shifter;
   double r = -k * 6.93147180369123816490e-01 + x;  // ln 2 split in two: k ln2_hi is exact
   r = -k * 1.90821492927058770002e-10 + r;
-  double e = 1.0 / 6227020800.0;
-  e = e * r + 1.0 / 479001600.0;
-  e = e * r + 1.0 / 39916800.0;
-  e = e * r + 1.0 / 3628800.0;
-  e = e * r + 1.0 / 362880.0;
-  e = e * r + 1.0 / 40320.0;
-  e = e * r + 1.0 / 5040.0;
-  e = e * r + 1.0 / 720.0;
-  e = e * r + 1.0 / 120.0;
-  e = e * r + 1.0 / 24.0;
-  e = e * r + 1.0 / 6.0;
-  e = e * r + 0.5;
-  e = e * r + 1.0;
-  e = e * r + 1.0;
+  const double e = taylor_exp<13>(r);
   const std::uint64_t two_k = (std::bit_cast<std::uint64_t>(t) + 1023) << 52;
   return e * std::bit_cast<double>(two_k);
 }
@@ -169,21 +176,7 @@ LogPartition evaluate_dual(DualWorkspace<D>& ws, Eigen::Index m, const Eigen::Ma
             double t = d0 * x0[j];
             if constexpr (D > 1) t += d1 * x1[j];
             if constexpr (D > 2) t += d2 * x2[j];
-            double e;
-            if constexpr (Degree == 5) {
-              e = 1.0 / 120 * t + 1.0 / 24;
-            } else {
-              e = 1.0 / 362880 * t + 1.0 / 40320;
-              e = e * t + 1.0 / 5040;
-              e = e * t + 1.0 / 720;
-              e = e * t + 1.0 / 120;
-              e = e * t + 1.0 / 24;
-            }
-            e = e * t + 1.0 / 6;
-            e = e * t + 0.5;
-            e = e * t + 1.0;
-            e = e * t + 1.0;
-            w = p[j] * e;
+            w = p[j] * taylor_exp<Degree>(t);
           }
           const double a = w * x0[j];
           p[j] = w;
