@@ -247,8 +247,9 @@ class FlowSystem {
   /// bench_flow's block).
   /// Scales them by the c that minimizes the momentum residual at X (affine
   /// in c) and returns c; leaves X and returns 1 where that does not lower
-  /// |R| or c is 1 to within 1e-6. The next solve's right-hand side is then the flow's, not mu(d_min)'s
-  /// pressure left over, which a Krylov solve would have to cancel to ~1e-8.
+  /// |R| or c is 1 to within 1e-6. The next solve's right-hand side is then
+  /// the flow's, not mu(d_min)'s pressure left over, which a Krylov solve
+  /// would have to cancel to ~1e-8.
   double rescale_stresses(Eigen::VectorXd& X) {
     update_structure();
     const int nv = DofLayout::fields_of(number_of_nodes());

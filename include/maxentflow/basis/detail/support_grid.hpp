@@ -21,8 +21,9 @@ namespace maxentflow::detail {
 /// plus a distance filter, and node-dependent radii (graded clouds) cost nothing
 /// extra. Cells are half the median radius wide: a query then filters about
 /// (pi + 2 + 1/4) (R/h)^2 candidates (46 at R = 2.94 h) instead of the 9 (R/h)^2
-/// (78) of cells a radius wide that register whole support boxes. Cells also know where the convex hull is: cells that meet a hull
-/// facet carry the facet list; the other cells are wholly inside or wholly outside.
+/// (78) of cells a radius wide that register whole support boxes. Cells also
+/// know where the convex hull is: cells that meet a hull facet carry the facet
+/// list; the other cells are wholly inside or wholly outside.
 template <int D>
 class SupportGrid {
  public:
