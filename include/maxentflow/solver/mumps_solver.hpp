@@ -234,7 +234,12 @@ using KeptLuSolver = MixedMumpsSolver;
 /// The LU of GmresSolver's linear-triangle companion: single-precision
 /// factors, as the companion is itself only an approximation of the max-ent
 /// system (bench_flow 1k-16k: the same GMRES iterations as double factors;
-/// at 16k factorization 2.1 -> 1.1 s, peak 630 -> 582 MB).
+/// at 16k factorization 2.1 -> 1.1 s, peak 630 -> 582 MB). Measured: at
+/// ~50k unknowns MUMPS's single-precision factorization is not bitwise the
+/// same from run to run, also with OpenBLAS and MUMPS on one thread
+/// (bench_flow 16k: 902-916 GMRES iterations, final residuals 3e-10..2e-9,
+/// forces equal to 6 digits); its double-precision one is (at 4k nodes both
+/// are). GmresSolver<DirectSolver> keeps such runs bitwise reproducible.
 using CompanionLuSolver = BasicMumpsSolver<float>;
 
 }  // namespace maxentflow
