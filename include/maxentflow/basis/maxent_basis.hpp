@@ -596,13 +596,14 @@ class MaxEntBasis {
     const Point c = rb - M * r;
     ws.grad.resize(static_cast<std::size_t>(m) * Dim);
     double* g = ws.grad.data();
-    const double M00 = M(0, 0), M01 = Dim > 1 ? M(0, Dim > 1 ? 1 : 0) : 0.0,
-                 M02 = Dim > 2 ? M(0, Dim > 2 ? 2 : 0) : 0.0;
-    const double M10 = Dim > 1 ? M(Dim > 1 ? 1 : 0, 0) : 0.0, M11 = Dim > 1 ? M(Dim > 1 ? 1 : 0, Dim > 1 ? 1 : 0) : 0.0,
-                 M12 = Dim > 2 ? M(Dim > 1 ? 1 : 0, Dim > 2 ? 2 : 0) : 0.0;
-    const double M20 = Dim > 2 ? M(Dim > 2 ? 2 : 0, 0) : 0.0, M21 = Dim > 2 ? M(Dim > 2 ? 2 : 0, Dim > 1 ? 1 : 0) : 0.0,
-                 M22 = Dim > 2 ? M(Dim > 2 ? 2 : 0, Dim > 2 ? 2 : 0) : 0.0;
-    const double c0 = c(0), c1 = Dim > 1 ? c(Dim > 1 ? 1 : 0) : 0.0, c2 = Dim > 2 ? c(Dim > 2 ? 2 : 0) : 0.0;
+    double Mm[3][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}, cm[3] = {0, 0, 0};  // padded to 3-D
+    for (int k = 0; k < Dim; ++k) {
+      cm[k] = c(k);
+      for (int l = 0; l < Dim; ++l) Mm[k][l] = M(k, l);
+    }
+    const double M00 = Mm[0][0], M01 = Mm[0][1], M02 = Mm[0][2], M10 = Mm[1][0], M11 = Mm[1][1],
+                 M12 = Mm[1][2], M20 = Mm[2][0], M21 = Mm[2][1], M22 = Mm[2][2];
+    const double c0 = cm[0], c1 = cm[1], c2 = cm[2];
 #pragma omp simd
     for (int j = 0; j < m; ++j) {
       const double tb = 2.0 * beta[j], pj = p[j];
