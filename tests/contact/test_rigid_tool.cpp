@@ -379,6 +379,27 @@ TEST_CASE("extrusion die: the paper's square die, edge radius, axisymmetric", "[
   check(axi.closest(V2(4, -1)), V2(5, -1), V2(-1, 0), 1);
 }
 
+// Found by fuzz_rigid_tool: three collinear points 1e-14 apart, queried 6.56 away.
+// The nearest piece end is a smooth joint by round-off; the gap must still be the
+// distance, with the normal along x - point.
+TEST_CASE("smooth joint at round-off: |gap| = distance", "[contact][tool]") {
+  const RigidTool tiny("tiny", points({V2(-6.2352941176470607, -6.2352941176470589),
+                                       V2(-6.2352941176470589, -6.2352941176470589),
+                                       V2(-6.2352941176470456, -6.2352941176470589)}));
+  const V2 x(-6.2176513671840761, 0.32470785256009549);
+  const auto p = tiny.closest(x);
+  CHECK(p.gap == Approx(p.distance).epsilon(1e-14));
+  CHECK(near(x - p.point, p.gap * p.normal, 1e-12));
+  // A unit-length straight tool seen from 1e8 away beyond its end.
+  const RigidTool straight("straight", points({V2(0, 0), V2(0.5, 0), V2(1, 0)}));
+  for (const V2& q : {V2(1e8, 1e3), V2(1e8, -1e3), V2(-1e8, 3e7)}) {
+    INFO("x = " << q.transpose());
+    const auto r = straight.closest(q);
+    CHECK(std::abs(r.gap) == Approx(r.distance).epsilon(1e-14));
+    CHECK(r.normal.norm() == Approx(1.0).epsilon(1e-14));
+  }
+}
+
 TEST_CASE("bad input throws maxentflow::Error", "[contact][tool]") {
   const double nan = std::numeric_limits<double>::quiet_NaN();
   const double inf = std::numeric_limits<double>::infinity();

@@ -330,7 +330,7 @@ class RigidTool {
   }
 
   /// Closest tool point to x, outward normal and signed gap. Inside a piece the normal
-  /// is the piece's. At a corner or an open end the normal is (x - point)/|x - point|,
+  /// is the piece's. At a joint or an open end the normal is (x - point)/|x - point|,
   /// turned to the free side: its sign follows the bisector n_in + n_out of the normals
   /// meeting there (at an open end, the end piece's normal), so points behind a thin
   /// tool get gap < 0. With x on the corner itself (within 1e-12 of the tool's size)
@@ -363,8 +363,10 @@ class RigidTool {
       const Joint& j = joints_[static_cast<std::size_t>(joint_index(best_piece, best.end))];
       r.at_corner = j.sharp;
       n = j.bisector;
-      if (j.sharp && r.distance > 1e-12 * scale_)
-        n = (d.dot(j.bisector) >= 0.0 ? 1.0 : -1.0) * d / r.distance;
+      // Along d at a smooth joint too: there d is the bisector up to the 1e-8 angle
+      // tolerance, but when pieces are at round-off against the distance (found by
+      // fuzz_rigid_tool) the foot can land on a smooth joint with d far from it.
+      if (r.distance > 1e-12 * scale_) n = (d.dot(j.bisector) >= 0.0 ? 1.0 : -1.0) * d / r.distance;
     }
     r.normal = n;
     r.gap = d.dot(n);
