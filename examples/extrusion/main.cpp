@@ -175,6 +175,7 @@ int convergence(Setup s, std::vector<int> sides, const fs::path& dir, bool check
 struct Options {
   bool no_plots = false, check = false, verbose = false;
   double area_tol = 0.03;
+  double surface_tol = 0.25;  // in h, the uniform grid's spacing
   int steps = 100, vtu_every = 10;
   std::string out = "results/extrusion", node_update = "ab2";
   std::vector<int> convergence;
@@ -223,8 +224,13 @@ void add_options(CLI::App& app, Setup& s, Options& o) {
   app.add_flag("--verbose", o.verbose, "Log every nonlinear iteration");
   app.add_flag("--check", o.check,
                "Exit 1 unless: no penetration, area change < --area-tol, product width within 5 % of the "
-               "die opening, step-1 axis pressure decreasing, die-face pressure peaking next to the die corner");
+               "die opening, its free surface within --surface-tol of the opening's line, step-1 axis pressure "
+               "decreasing, die-face pressure peaking next to the die corner");
   app.add_option("--area-tol", o.area_tol, "Largest area (volume) change --check accepts")->check(CLI::PositiveNumber);
+  app.add_option("--surface-tol", o.surface_tol,
+                 "Largest distance (in h = length / (nx - 1)) --check accepts between a node of the product's free "
+                 "surface, from the land's end to 3 h before the nose, and the opening's line")
+      ->check(CLI::PositiveNumber);
   app.add_option("--load-window", o.load_window,
                  "Ram strokes (from,to) over which the ram load's steadiness is reported")
       ->delimiter(',')
@@ -366,6 +372,8 @@ std::vector<std::string> failed_checks(const Setup& s, const Options& o, const R
   if (m.max_area_change > o.area_tol) failed.push_back("area changes by more than --area-tol");
   if (o.steps * s.dt * s.V >= 0.5 * s.length && w.error > 0.05)
     failed.push_back("product width off the die opening by > 5 %");
+  if (o.steps * s.dt * s.V >= 0.5 * s.length && w.surface_dev > o.surface_tol)
+    failed.push_back("a node of the product's free surface is more than --surface-tol h off the opening's line");
   if (f.rise > 0.01 * f.range) failed.push_back("step-1 axis pressure not decreasing");
   if (f.peak_y < s.opening() || f.peak_y > s.opening() + 0.5 * (s.height - s.opening()) || !(f.peak > 1.5 * f.die_below))
     failed.push_back("die-face pressure does not peak next to the die corner");
