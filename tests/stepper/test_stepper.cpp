@@ -299,6 +299,50 @@ TEST_CASE("contact: a node at a tool's end that the velocity guess moves off sta
   CHECK(active(keep, {0.3, -0.3}) == std::make_pair(true, true));
 }
 
+TEST_CASE("contact: a zone opens from its edges, a whole tensile run in one update",
+          "[stepper][contact]") {
+  // [0, 5]^2, h = 1, under a plate wider than the block: the six top nodes
+  // are in contact, the block's top corners are the zone's edges.
+  const Eigen::Matrix2Xd x = block_nodes(6, 6, 5, 5, false);
+  const IntegrationMesh<> mesh(x);
+  const RigidTool plate = flat_plate("top", {2.5, 5}, {0, -1}, 3.5);
+  const Eigen::Matrix2Xd v = Eigen::Matrix2Xd::Zero(2, x.cols());
+  const double dt = 0.1;
+  const int n = static_cast<int>(x.cols());
+  // The nodes the update releases when the top node at x = i has multiplier lambda(i).
+  auto released = [&](const std::function<double(double)>& lambda) {
+    ToolContact c;
+    c.detect(mesh, plate, v, dt);
+    REQUIRE(c.active_count() == 6);
+    ConstraintSet cs;
+    const int part = cs.add_part("tool top");
+    std::vector<double> l;
+    for (const auto& p : c.points())
+      if (p.active) {
+        ConstraintRow row;
+        row.part = part;
+        row.node = p.node;
+        row.direction = {0, -1};
+        cs.add(row);
+        l.push_back(lambda(x(0, p.node)));
+      }
+    Eigen::VectorXd X = Eigen::VectorXd::Zero(DofLayout::fields_of(n) + cs.size());
+    for (int i = 0; i < cs.size(); ++i) X[DofLayout::fields_of(n) + i] = l[static_cast<std::size_t>(i)];
+    c.update(cs, part, X, n, x, v, plate, dt);
+    std::vector<double> at;
+    for (int a : c.changed_nodes()) at.push_back(x(0, a));
+    std::sort(at.begin(), at.end());
+    return at;
+  };
+  // The whole zone tensile (the plate pulled off): all six go at once, not
+  // the two edge nodes (one per end per update, too slow for a long zone).
+  CHECK(released([](double) { return 1.0; }) == std::vector<double>{0, 1, 2, 3, 4, 5});
+  // Tensile from the left edge to x = 2: that run goes, the rest stays.
+  CHECK(released([](double px) { return px < 2.5 ? 1.0 : -1.0; }) == std::vector<double>{0, 1, 2});
+  // Tensile inside the zone only (the weak imposition's oscillation): nothing goes.
+  CHECK(released([](double px) { return px > 1.5 && px < 3.5 ? 1.0 : -1.0; }).empty());
+}
+
 TEST_CASE("contact: a cornered punch indents without penetration; the free top stays free",
           "[stepper][contact]") {
   // A square punch over x in [-1, 3] (the symmetry line at x = 0) on a billet 8 wide.

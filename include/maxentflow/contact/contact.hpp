@@ -181,25 +181,52 @@ class ToolContact {
       }
     int changes = 0;
     changed_.clear();
-    // Contact zones open from their edges: a node is released only if a
-    // boundary neighbour is free. Inside a zone a tensile multiplier is the
-    // weak hat imposition's oscillation (e.g. next to a die corner's pressure
-    // peak), and releasing it would free both its segments and let them
-    // penetrate. Decided on the state before this update.
-    std::vector<char> was_active(points_.size());
-    for (std::size_t i = 0; i < points_.size(); ++i) was_active[i] = points_[i].active;
-    auto at_zone_edge = [&](const ContactPoint& c) {
-      return c.prev < 0 || c.next < 0 || !was_active[static_cast<std::size_t>(c.prev)] ||
-             !was_active[static_cast<std::size_t>(c.next)];
-    };
-    for (auto& c : points_) {
+    // Contact zones open from their edges: a node is released only if it is
+    // joined to a free boundary neighbour by a run of nodes that all release.
+    // Inside a zone a tensile multiplier is the weak hat imposition's
+    // oscillation (e.g. next to a die corner's pressure peak), and releasing
+    // it would free both its segments and let them penetrate. A whole run
+    // goes in one update: one node per update from the edge could not open a
+    // zone that separates along many nodes (material leaving a ram near the
+    // end of an extrusion stroke) within the active-set iterations.
+    // Decided on the state before this update.
+    std::vector<char> releases(points_.size(), 0);
+    for (std::size_t i = 0; i < points_.size(); ++i) {
+      const ContactPoint& c = points_[i];
+      const auto it = lambda.find(c.node);
+      // Released at most once per step: a node that the free solve drives
+      // back into the tool stays in contact (its multiplier is then only
+      // slightly tensile, an artefact of the weak hat imposition).
+      releases[i] = c.active && it != lambda.end() && it->second > prm_.release_tol * lmax && c.releases == 0;
+    }
+    auto edge_side = [&](int j) { return j < 0 || !points_[static_cast<std::size_t>(j)].active; };
+    std::vector<char> release(points_.size(), 0);
+    for (std::size_t i = 0; i < points_.size(); ++i) {
+      if (!releases[i] || release[i]) continue;
+      // The run of releasing nodes through i, and whether a free node or an
+      // open end bounds it.
+      std::vector<std::size_t> run{i};
+      bool edge = false;
+      for (const bool forward : {false, true}) {
+        int j = forward ? points_[i].next : points_[i].prev;
+        while (true) {
+          if (edge_side(j)) {
+            edge = true;
+            break;
+          }
+          const auto k = static_cast<std::size_t>(j);
+          if (!releases[k] || k == i) break;  // k == i: a closed loop of releasing nodes
+          run.push_back(k);
+          j = forward ? points_[k].next : points_[k].prev;
+        }
+      }
+      if (edge)
+        for (std::size_t k : run) release[k] = 1;
+    }
+    for (std::size_t i = 0; i < points_.size(); ++i) {
+      ContactPoint& c = points_[i];
       if (c.active) {
-        const auto it = lambda.find(c.node);
-        // Released at most once per step: a node that the free solve drives
-        // back into the tool stays in contact (its multiplier is then only
-        // slightly tensile, an artefact of the weak hat imposition).
-        if (it != lambda.end() && it->second > prm_.release_tol * lmax && c.releases == 0 &&
-            at_zone_edge(c)) {
+        if (release[i]) {
           c.active = false;
           ++c.releases;
           ++changes;
