@@ -380,6 +380,26 @@ TEST_CASE("extrusion die: the paper's square die, edge radius, axisymmetric", "[
 }
 
 // Found by fuzz_rigid_tool: three collinear points 1e-14 apart, queried 6.56 away.
+TEST_CASE("crosses: through a thin plate, not across a convex corner or along a face", "[contact][tool]") {
+  RigidTool plate = maxentflow::rectangle("plate", {4.8, 0}, {5.2, 10});  // 0.4 thick
+  CHECK(plate.crosses({4, 5}, {6, 5}));
+  CHECK(plate.crosses({4.7, 2}, {5.3, 2.5}));  // 0.4 of the segment inside
+  CHECK_FALSE(plate.crosses({4, 5}, {4.7, 5.1}));  // stops short
+  CHECK_FALSE(plate.crosses({4.8, 2}, {4.8, 6}));  // along a face
+  CHECK_FALSE(plate.crosses({4, 11}, {6, 11}));   // past its end
+  plate.translate({0, 20});
+  CHECK_FALSE(plate.crosses({4, 5}, {6, 5}));
+  CHECK(plate.crosses({4, 25}, {6, 25}));
+  // A square die's corner (90 degrees) and E3's tool tip (102): a segment
+  // that cuts the corner is the centroid rule's business, not a crossing.
+  const RigidTool die = maxentflow::extrusion_die("die", {300, 150}, {1, 0}, 150, 30, 0, 300, 150);
+  CHECK_FALSE(die.crosses({300, 155}, {305, 150}));
+  CHECK(die.crosses({295, 200}, {335, 200}));  // through the die block: face to relief
+  const RigidTool tool = maxentflow::cutting_tool({0, 0}, 5, 7, 0, 10);
+  const double r = 5 * M_PI / 180, c = 7 * M_PI / 180;
+  CHECK_FALSE(tool.crosses({std::sin(r) * 0.5, std::cos(r) * 0.5}, {std::cos(c) * 0.5, std::sin(c) * 0.5}));
+}
+
 // The nearest piece end is a smooth joint by round-off; the gap must still be the
 // distance, with the normal along x - point.
 TEST_CASE("smooth joint at round-off: |gap| = distance", "[contact][tool]") {

@@ -334,6 +334,34 @@ TEST_CASE("a solid (tool) in the re-entrant corner drops the chamfer that bridge
   CHECK_THROWS_AS(Mesh(g.x, prm), Error);
 }
 
+TEST_CASE("a solid thinner than the spacing: no triangle joins its two sides", "[mesh]") {
+  // [0, 2] x [0, 1], h = 0.1, the column x = 1 left out for a wall
+  // x in [0.98, 1.02] (0.4 h thick): the triangles across the 2 h gap pass the
+  // alpha cut (R ~ 1.06 h) and their centroids lie outside the wall.
+  const double h = 0.1;
+  const auto g = grid_cloud(21, 11, h, [](int i, int) { return i != 10; });
+  const double w0 = 0.98, w1 = 1.02;
+  const auto depth = [&](const Eigen::Vector2d& p) { return std::min(p.x() - w0, w1 - p.x()); };
+  const auto crossing = [&](const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+    return (a.x() < w0 && b.x() > w1) || (b.x() < w0 && a.x() > w1);
+  };
+  Mesh m;
+  m.set_solid(depth);  // the centroid rule alone: the gap is bridged
+  m.build(g.x);
+  check_invariants(m);
+  CHECK(m.solid_dropped() == 0);
+  CHECK(std::abs(m.total_area() - 2.0) < 1e-12);
+  CHECK(m.boundary_loops().size() == 1);
+  m.set_solid(depth, crossing);  // two blocks, each with its own boundary
+  m.build(g.x);
+  check_invariants(m);
+  CHECK(m.solid_dropped() == 20);  // the gap's 10 rectangles, two triangles each
+  CHECK(std::abs(m.total_area() - 1.8) < 1e-12);
+  CHECK(std::abs(m.perimeter() - 7.6) < 1e-12);
+  CHECK(m.boundary_loops().size() == 2);
+  for (int j = 0; j < 11; ++j) CHECK((m.is_boundary_node(g.at(9, j)) && m.is_boundary_node(g.at(11, j))));
+}
+
 TEST_CASE("annulus: one outer CCW loop and one CW hole", "[mesh]") {
   // Rings of nodes at r = 0.5 .. 1 (h = 0.05), alternate rings rotated half a step.
   const double r0 = 0.5, r1 = 1.0, h = 0.05;

@@ -239,6 +239,10 @@ class ContactSet {
     for (const auto& t : tools_) d = std::max(d, -t.gap(p));
     return d;
   }
+  /// Whether the segment a-b passes through a tool (RigidTool::crosses).
+  bool crossed(const Eigen::Vector2d& a, const Eigen::Vector2d& b) const {
+    return std::any_of(tools_.begin(), tools_.end(), [&](const RigidTool& t) { return t.crosses(a, b); });
+  }
   /// The tools' sharp convex corners, where they are now.
   std::vector<Eigen::Vector2d> convex_corners() const {
     std::vector<Eigen::Vector2d> c;

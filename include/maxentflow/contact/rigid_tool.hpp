@@ -376,6 +376,25 @@ class RigidTool {
 
   /// The signed gap (x - xbar) . n of closest(x).
   double gap(const Eigen::Vector2d& x) const { return closest(x).gap; }
+  /// Whether the segment a-b passes through the tool from one side to another
+  /// (a die plate or land thinner than the node spacing): a and b project onto
+  /// parts of the tool that face away from each other (normals more than 120
+  /// degrees apart) and one of `samples` - 1 points between them lies inside.
+  /// A segment that only cuts a convex corner (normals 90 degrees apart at a
+  /// square die's corner, 102 at E3's tool tip) does not cross.
+  bool crosses(const Eigen::Vector2d& a, const Eigen::Vector2d& b, int samples = 16) const {
+    const Eigen::Vector2d ab = a - displacement_, bb = b - displacement_;
+    if ((ab.cwiseMax(bb).array() < lo_.array()).any() || (ab.cwiseMin(bb).array() > hi_.array()).any())
+      return false;  // the segment's box misses the tool's
+    const double L = (b - a).norm();
+    const ToolProjection pa = closest(a), pb = closest(b);
+    // Every point of the segment lies within L / 2 of an end.
+    if (pa.distance > L && pb.distance > L) return false;
+    if (pa.normal.dot(pb.normal) > -0.5) return false;
+    for (int k = 1; k < samples; ++k)
+      if (gap(a + (static_cast<double>(k) / samples) * (b - a)) < -1e-9 * L) return true;
+    return false;
+  }
   /// The distance to the tool, negative inside it (same sign as gap(x)).
   double signed_distance(const Eigen::Vector2d& x) const {
     const auto p = closest(x);
@@ -442,6 +461,8 @@ class RigidTool {
       extent.col(c + 3) = (p.kind == ToolPiece::Kind::arc ? p.center : p.start).array() + r;
     }
     scale_ = extent.allFinite() ? detail::bbox_diagonal(extent) : 0.0;
+    lo_ = extent.rowwise().minCoeff();
+    hi_ = extent.rowwise().maxCoeff();
     const double tol = 1e-9 * scale_;
     for (std::size_t i = 0; i < n; ++i) {
       const auto& p = pieces_[i];
@@ -500,6 +521,7 @@ class RigidTool {
   bool closed_ = false;
   std::vector<Joint> joints_;
   double scale_ = 0.0;  // bounding-box diagonal: sets the geometric tolerances
+  Eigen::Vector2d lo_ = Eigen::Vector2d::Zero(), hi_ = Eigen::Vector2d::Zero();  // the box, at rest
   Eigen::Vector2d velocity_ = Eigen::Vector2d::Zero();
   Eigen::Vector2d displacement_ = Eigen::Vector2d::Zero();
 };

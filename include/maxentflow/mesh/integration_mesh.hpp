@@ -145,6 +145,9 @@ class IntegrationMesh {
   };
   /// Depth of a point inside solid obstacles (rigid tools): > 0 inside.
   using SolidDepth = std::function<double(const Eigen::Vector2d&)>;
+  /// Whether the segment between two points passes through a solid from one
+  /// side to another (a solid thinner than the node spacing).
+  using SolidCrossing = std::function<bool(const Eigen::Vector2d&, const Eigen::Vector2d&)>;
 
   IntegrationMesh() = default;
   explicit IntegrationMesh(const params& p) : prm_(p) { check_params(); }
@@ -167,8 +170,15 @@ class IntegrationMesh {
   /// alpha cut keeps a Delaunay triangle that bridges a tool's convex corner
   /// (a square die's corner between a node on the face and one on the land),
   /// so an interior node of that triangle could flow into the tool unseen by
-  /// contact, which treats boundary nodes only. Such triangles are dropped.
-  void set_solid(SolidDepth depth) { solid_ = std::move(depth); }
+  /// contact, which treats boundary nodes only. Such triangles are dropped,
+  /// and with `crossing` those with an edge through a solid thinner than the
+  /// spacing (a die land of 3 with nodes 10 apart), whose centroid may lie
+  /// outside it or shallower than solid_tolerance: material on both sides
+  /// would be joined through the solid and flow across it unseen by contact.
+  void set_solid(SolidDepth depth, SolidCrossing crossing = {}) {
+    solid_ = std::move(depth);
+    crossing_ = std::move(crossing);
+  }
   /// Triangles the last build dropped as inside a solid.
   int solid_dropped() const { return solid_dropped_; }
   /// No mesh (before the first build, or after a failed one).
@@ -270,6 +280,7 @@ class IntegrationMesh {
 
   params prm_;
   SolidDepth solid_;
+  SolidCrossing crossing_;
   int solid_dropped_ = 0;
   Points nodes_;
   detail::Delaunay2 dt_;
@@ -502,7 +513,8 @@ void IntegrationMesh<D>::alpha_cut(const std::string& where) {
     radius_[t] = R;
     const double h = (h_cut_[v[0]] + h_cut_[v[1]] + h_cut_[v[2]]) / 3.0;
     if (R > prm_.alpha * h) continue;
-    if (solid_ && solid_((p + q + r) / 3.0) > prm_.solid_tolerance * h) {
+    if ((solid_ && solid_((p + q + r) / 3.0) > prm_.solid_tolerance * h) ||
+        (crossing_ && (crossing_(p, q) || crossing_(q, r) || crossing_(r, p)))) {
       ++solid_dropped_;
       continue;
     }

@@ -491,7 +491,8 @@ class Stepper {
     // a triangle across the die, and its interior node would flow into the die
     // (the rezoning's corner node then rounds the corner: NodeAdaptivityParams).
     if (!contact_.tools().empty())
-      cfg.mesh->set_solid([this](const Eigen::Vector2d& p) { return contact_.depth(p); });
+      cfg.mesh->set_solid([this](const Eigen::Vector2d& p) { return contact_.depth(p); },
+                          [this](const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return contact_.crossed(a, b); });
     cfg.mesh->build(x_);
     if (!h0_set_) {  // the rezoning's target spacing: the first configuration's
       fields_.flat(k_.h0) = cfg.mesh->h();
