@@ -390,6 +390,7 @@ TEST_CASE("crosses: through a thin plate, not across a convex corner or along a 
   plate.translate({0, 20});
   CHECK_FALSE(plate.crosses({4, 5}, {6, 5}));
   CHECK(plate.crosses({4, 25}, {6, 25}));
+  CHECK_THROWS_AS(plate.crosses({4, 25}, {6, 25}, 1), Error);
   // A square die's corner (90 degrees) and E3's tool tip (102): a segment
   // that cuts the corner is the centroid rule's business, not a crossing.
   const RigidTool die = maxentflow::extrusion_die("die", {300, 150}, {1, 0}, 150, 30, 0, 300, 150);

@@ -606,6 +606,27 @@ TEST_CASE("rezoning: no node is put inside a tool", "[stepper][rezoning]") {
   CHECK_THROWS_AS(plan_node_adaptation(mesh, Eigen::VectorXd::Ones(3), prm), Error);
 }
 
+TEST_CASE("rezoning: no edge across a tool thinner than the spacing", "[stepper][rezoning]") {
+  // Two blocks [0, 1]^2 (h = h0 = 0.1) 0.03 apart with a wall 0.02 thick
+  // between them. An edge across the gap is shorter than min_ratio h0
+  // (0.035) but is no edge of the material: on the mesh the stepper plans
+  // with (the crossing rule, as the solve's) the rezoning leaves it alone.
+  const Eigen::Matrix2Xd a = block_nodes(11, 11, 1, 1, false);
+  Eigen::Matrix2Xd x(2, 2 * a.cols());
+  x << a, a.colwise() + Eigen::Vector2d(1.03, 0);
+  const RigidTool wall = rectangle("wall", {1.005, -0.5}, {1.025, 1.5});
+  const Eigen::VectorXd h0 = Eigen::VectorXd::Constant(x.cols(), 0.1);
+  const NodeAdaptivityParams prm;
+  const IntegrationMesh<> plain(x);
+  CHECK(plain.boundary_loops().size() == 1);
+  CHECK(plan_node_adaptation(plain, h0, prm).removed.size() > 0);  // the gap collapsed
+  IntegrationMesh<> mesh;
+  mesh.set_solid({}, [&](const Eigen::Vector2d& p, const Eigen::Vector2d& q) { return wall.crosses(p, q); });
+  mesh.build(x);
+  CHECK(mesh.boundary_loops().size() == 2);
+  CHECK(plan_node_adaptation(mesh, h0, prm).empty());
+}
+
 TEST_CASE("rezoning: a node on a convex tool corner next to the boundary, once", "[stepper][rezoning]") {
   const Eigen::Matrix2Xd x = block_nodes(6, 6, 5, 5, false);  // h = h0 = 1
   const IntegrationMesh<> mesh(x);

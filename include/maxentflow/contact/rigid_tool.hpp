@@ -383,6 +383,7 @@ class RigidTool {
   /// A segment that only cuts a convex corner (normals 90 degrees apart at a
   /// square die's corner, 102 at E3's tool tip) does not cross.
   bool crosses(const Eigen::Vector2d& a, const Eigen::Vector2d& b, int samples = 16) const {
+    MAXENTFLOW_REQUIRE(samples >= 2, detail::cat("samples must be >= 2, got ", samples), where("crosses"));
     const Eigen::Vector2d ab = a - displacement_, bb = b - displacement_;
     if ((ab.cwiseMax(bb).array() < lo_.array()).any() || (ab.cwiseMin(bb).array() > hi_.array()).any())
       return false;  // the segment's box misses the tool's

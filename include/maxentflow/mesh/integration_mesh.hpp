@@ -179,7 +179,7 @@ class IntegrationMesh {
     solid_ = std::move(depth);
     crossing_ = std::move(crossing);
   }
-  /// Triangles the last build dropped as inside a solid.
+  /// Triangles the last build dropped as inside or across a solid.
   int solid_dropped() const { return solid_dropped_; }
   /// No mesh (before the first build, or after a failed one).
   bool empty() const { return triangles_.empty(); }

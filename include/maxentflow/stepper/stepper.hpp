@@ -763,6 +763,12 @@ class Stepper {
   void rezone(StepRecord& rec) {
     const auto t = clock::now();
     Mesh mesh(prm_.mesh);
+    // Not across a thin tool (as the solve's mesh): an edge from one face of
+    // a die plate to the other is no edge of the material, to split or to
+    // collapse. (The centroid rule stays the solve's: the rezoning plans on
+    // the plain alpha-shape next to a convex corner.)
+    if (!contact_.tools().empty())
+      mesh.set_solid({}, [this](const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return contact_.crossed(a, b); });
     mesh.build(x_);
     const auto admissible = [this](const Eigen::Vector2d& p) { return contact_.admissible(p); };
     NodeAdaptation a = plan_node_adaptation(mesh, fields_.flat(k_.h0), prm_.adapt, admissible);
