@@ -135,6 +135,15 @@ TEST_CASE("container: material inside, concave corners, open side", "[contact][t
   CHECK(near(box.pieces()[0].start, V2(0, 3)));  // open top: left wall first
   CHECK(near(box.pieces()[2].end, V2(4, 3)));
   CHECK(box.convex_corners().empty());  // concave corners and open ends only
+  // The two bottom corners, each with its two walls' normals (in, out along the tool).
+  const auto concave = box.concave_corners();
+  REQUIRE(concave.size() == 2);
+  CHECK(near(concave[0].point, V2(0, 0)));
+  CHECK(near(concave[0].n_in, V2(1, 0)));
+  CHECK(near(concave[0].n_out, V2(0, 1)));
+  CHECK(near(concave[1].point, V2(4, 0)));
+  CHECK(near(concave[1].n_in, V2(0, 1)));
+  CHECK(near(concave[1].n_out, V2(-1, 0)));
 
   check(box.closest(V2(1, 0.5)), V2(1, 0), V2(0, 1), 0.5);
   check(box.closest(V2(0.5, 2)), V2(0, 2), V2(1, 0), 0.5);
@@ -356,6 +365,11 @@ TEST_CASE("extrusion die: the paper's square die, edge radius, axisymmetric", "[
   CHECK(near(die.convex_corners()[0], V2(300, 150)));
   moved.translate(V2(2, -1));
   CHECK(near(moved.convex_corners()[0], V2(302, 149)));
+  // The face-wall corner is its one concave corner: die face, then wall.
+  REQUIRE(moved.concave_corners().size() == 1);
+  CHECK(near(moved.concave_corners()[0].point, V2(302, 299)));
+  CHECK(near(moved.concave_corners()[0].n_in, V2(-1, 0)));
+  CHECK(near(moved.concave_corners()[0].n_out, V2(0, -1)));
 
   const auto round = maxentflow::extrusion_die("round", V2(300, 150), V2(1, 0), 150, 30, 10);
   REQUIRE(round.pieces().size() == 3);

@@ -343,6 +343,41 @@ TEST_CASE("contact: a zone opens from its edges, a whole tensile run in one upda
   CHECK(released([](double px) { return px > 1.5 && px < 3.5 ? 1.0 : -1.0; }).empty());
 }
 
+TEST_CASE("contact: a node in a concave tool corner is held by both faces", "[stepper][contact]") {
+  // [0, 5]^2, h = 1, its top-right corner in the corner of an L-shaped tool:
+  // a face x = 5 (normal -x) turning into a wall y = 5 (normal -y).
+  Eigen::Matrix2Xd x = block_nodes(6, 6, 5, 5, false);
+  const Eigen::Matrix<double, 2, 3> L{{5, 5, -1}, {-1, 5, 5}};
+  const RigidTool tool("L", L);
+  REQUIRE(tool.concave_corners().size() == 1);
+  const Eigen::Matrix2Xd v = Eigen::Matrix2Xd::Zero(2, x.cols());
+  int corner = -1;
+  for (int a = 0; a < x.cols(); ++a)
+    if ((x.col(a) - Eigen::Vector2d(5, 5)).norm() < 1e-12) corner = a;
+  REQUIRE(corner >= 0);
+  // The corner node a hair off one face, then the other (E2's dead-zone
+  // corner after a step and its snap): the same face's condition first
+  // both times, and the other face's as its second. With the nearer face
+  // alone, the node's one condition swapped faces between the two.
+  for (const Eigen::Vector2d& off : {Eigen::Vector2d(-8e-4, -2e-4), Eigen::Vector2d(-2e-4, -8e-4)}) {
+    x.col(corner) = Eigen::Vector2d(5, 5) + off;
+    const IntegrationMesh<> mesh(x);
+    ToolContact c;
+    c.detect(mesh, tool, v, 0.1);
+    const auto it = std::find_if(c.points().begin(), c.points().end(),
+                                 [&](const ContactPoint& p) { return p.node == corner; });
+    REQUIRE(it != c.points().end());
+    INFO("offset " << off.transpose());
+    CHECK(it->active);
+    CHECK(it->projection.normal.isApprox(Eigen::Vector2d(-1, 0)));
+    REQUIRE(it->second_normal.has_value());
+    CHECK(it->second_normal->isApprox(Eigen::Vector2d(0, -1)));
+    // Its neighbours on each face keep their own face's one condition.
+    for (const auto& p : c.points())
+      if (p.node != corner && p.active) CHECK_FALSE(p.second_normal.has_value());
+  }
+}
+
 TEST_CASE("contact: a cornered punch indents without penetration; the free top stays free",
           "[stepper][contact]") {
   // A square punch over x in [-1, 3] (the symmetry line at x = 0) on a billet 8 wide.

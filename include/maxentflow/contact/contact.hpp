@@ -57,6 +57,13 @@ class ToolContact {
     /// 8). A node that rounds a die corner moves off by far less (E2: 0.02 h)
     /// and stays for its multiplier to decide.
     double leave_tol = 0.1;
+    /// A node within corner_tol * h_a of a concave tool corner (a container's
+    /// wall meeting the die face) is held by both faces: the condition of the
+    /// face it projects on, and a point condition along the other face's
+    /// normal. With one, the nearer face decided, and a node at E2's
+    /// dead-zone corner swapped faces every step (a new multiplier, a new
+    /// layout, a start 5 % off; docs/method.md section 4).
+    double corner_tol = 0.05;
   };
 
   ToolContact() = default;
@@ -71,6 +78,7 @@ class ToolContact {
     points_.clear();
     const auto& x = mesh.nodes();
     const auto& h = mesh.h();
+    const auto corners = tool.concave_corners();
     for (int a : mesh.boundary_nodes()) {
       ContactPoint c;
       c.node = a;
@@ -83,6 +91,14 @@ class ToolContact {
       // A node far from the tool (beyond a few h) cannot be reached in one step.
       if (c.projection.distance > 10.0 * h(a) && g > 0) c.active = false;
       if (c.projection.at_corner && g_end > prm_.leave_tol * h(a)) c.active = false;
+      for (const auto& k : corners)
+        if ((x.col(a) - k.point).norm() <= prm_.corner_tol * h(a)) {
+          // The first face's condition, whichever face is nearer, and the second's.
+          c.projection.normal = k.n_in;
+          c.projection.point = k.point;
+          c.projection.gap = (x.col(a) - k.point).dot(k.n_in);
+          c.second_normal = k.n_out;
+        }
       points_.push_back(c);
     }
     std::map<int, int> index;  // node -> position in points_
@@ -132,6 +148,21 @@ class ToolContact {
         cs.add(std::move(row));
       }
     }
+    if (roles != 1) return;  // a tangential condition holds the node already
+    for (const auto& c : points_) {
+      if (!c.active || !c.second_normal) continue;
+      ContactPoint second = c;
+      second.projection.normal = *c.second_normal;
+      second.projection.gap = (mesh.nodes().col(c.node) - c.projection.point).dot(*c.second_normal);
+      std::vector<ContactCondition> list;
+      law.conditions(second, tool, dt, list);
+      if (list.empty() || cs.has_parallel_row(c.node, list[0].direction)) continue;
+      ConstraintRow row = point_row(mesh, basis, part, c.node, list[0]);
+      // Two rows of one node need two keys (the layout's): faces along the same main axis get none.
+      const bool distinct = std::none_of(cs.rows().begin(), cs.rows().end(),
+                                         [&](const ConstraintRow& r) { return r.key() == row.key(); });
+      if (distinct) cs.add(std::move(row));
+    }
   }
 
   /// A TractionContactLaw's traction on the segments whose two ends are
@@ -176,7 +207,9 @@ class ToolContact {
     for (std::size_t i = 0; i < cs.rows().size(); ++i)
       if (cs.rows()[i].part == part && cs.rows()[i].role == 0) {
         const double l = X[DofLayout::fields_of(n_nodes) + static_cast<Eigen::Index>(i)];
-        lambda[cs.rows()[i].node] = l;
+        // A corner node's two rows: it stays while either face presses on it.
+        const auto [it, fresh] = lambda.try_emplace(cs.rows()[i].node, l);
+        if (!fresh) it->second = std::min(it->second, l);
         lmax = std::max(lmax, std::abs(l));
       }
     int changes = 0;

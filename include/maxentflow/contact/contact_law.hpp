@@ -6,6 +6,7 @@
 #include <cmath>
 #include <concepts>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -26,6 +27,9 @@ struct ContactPoint {
   bool active = false;
   int releases = 0;  ///< times the active set released it this step (at most once)
   int prev = -1, next = -1;  ///< neighbouring boundary nodes (indices into points())
+  /// At a concave tool corner (ToolContact::params::corner_tol): the normal
+  /// of the corner's second face, which gets a condition of its own.
+  std::optional<Eigen::Vector2d> second_normal;
   /// The tool's tangent at the projection: the normal turned by +90 degrees.
   Eigen::Vector2d tangent() const { return {-projection.normal.y(), projection.normal.x()}; }
 };

@@ -164,12 +164,13 @@ class ContactSet {
         if (!(len[a] > 0)) return 0.0;
         return axi ? (len_r[a] > 0 ? len[a] / (two_pi * len_r[a]) : 0.0) : 1.0;
       };
+      std::vector<char> seen(static_cast<std::size_t>(N), 0);
       for (std::size_t i = 0; i < rows.size(); ++i) {
         const ConstraintRow& r = rows[i];
         if (r.part != e.part || r.node < 0) continue;
         const double lambda = X[nv + static_cast<Eigen::Index>(i)] * per_area(r.node);
-        if (r.role == 0) p_n[r.node] = -lambda;
-        else tau[r.node] = std::abs(lambda);
+        if (r.role != 0) tau[r.node] = std::abs(lambda);
+        else if (!seen[static_cast<std::size_t>(r.node)]++) p_n[r.node] = -lambda;  // a corner's second row: a force
       }
       for (const auto& c : e.contact.points())
         if (c.active) {

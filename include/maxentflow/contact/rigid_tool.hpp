@@ -329,6 +329,22 @@ class RigidTool {
     return c;
   }
 
+  /// A sharp joint that turns away from the material (the material fills the
+  /// angle: a container's wall meeting the die face), with the outward normals
+  /// of the piece that ends there (n_in) and the one that starts there (n_out).
+  struct ConcaveCorner {
+    Eigen::Vector2d point, n_in, n_out;
+  };
+  std::vector<ConcaveCorner> concave_corners() const {
+    std::vector<ConcaveCorner> c;
+    const std::size_t n = pieces_.size();
+    for (std::size_t j = 0; j < joints_.size(); ++j)
+      if (joints_[j].concave)
+        c.push_back({pieces_[j % n].start + displacement_, pieces_[(j + n - 1) % n].normal(1.0),
+                     pieces_[j % n].normal(0.0)});
+    return c;
+  }
+
   /// Closest tool point to x, outward normal and signed gap. Inside a piece the normal
   /// is the piece's. At a joint or an open end the normal is (x - point)/|x - point|,
   /// turned to the free side: its sign follows the bisector n_in + n_out of the normals
@@ -436,6 +452,7 @@ class RigidTool {
     Eigen::Vector2d bisector;
     bool sharp;  // corner or open end
     bool convex = false;  // a sharp corner pointing into the material (a right turn)
+    bool concave = false;  // a sharp corner between two pieces turning away from it (a left turn)
   };
 
   std::string where(const char* method) const {
@@ -514,6 +531,7 @@ class RigidTool {
       J.bisector = (in.normal(1.0) + out.normal(0.0)).normalized();
       J.sharp = std::abs(angle) > detail::tool_angle_tolerance;
       J.convex = J.sharp && angle < 0.0;
+      J.concave = J.sharp && angle > 0.0;
     }
   }
 

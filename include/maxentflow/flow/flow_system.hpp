@@ -403,7 +403,8 @@ class FlowSystem {
     std::map<std::pair<int, int>, int> row_of;  // (part, node) -> role-0 row
     auto& rows = constraints_.rows();
     for (std::size_t i = 0; i < rows.size(); ++i)
-      if (rows[i].role == 0 && rows[i].node >= 0) row_of[{rows[i].part, rows[i].node}] = static_cast<int>(i);
+      if (rows[i].role == 0 && rows[i].node >= 0)  // the first: a corner node's second row is a point row
+        row_of.try_emplace({rows[i].part, rows[i].node}, static_cast<int>(i));
     const int ne = disc_->points_per_edge();
     for (auto& term : velocity_tractions_) {
       for (int e = 0; e < 2; ++e) {
