@@ -113,3 +113,32 @@ TEST_CASE("the discretization keeps the edge basis of boundary edges only, as ev
   CHECK(boundary_different == 0);
   CHECK(tab.entries() < fresh.entries() / 2);  // the memory went
 }
+
+TEST_CASE("node ranks: a spatial order, so that two threads share few cells", "[flow]") {
+  // A wide block numbered along x first: halving the node indices cuts it
+  // along its long side, halving the ranks across it.
+  FlowProblem<NortonHoff> P(block_nodes(33, 9, 32, 8, true), Geometry::plane_strain, NortonHoff(150.0, 0.2, 1e-8));
+  const FlowDiscretization& d = P.disc;
+  const int N = d.number_of_nodes();
+  std::vector<int> seen(static_cast<std::size_t>(N), 0);
+  for (int a = 0; a < N; ++a) ++seen[static_cast<std::size_t>(d.rank(a))];
+  CHECK(std::all_of(seen.begin(), seen.end(), [](int k) { return k == 1; }));  // a permutation
+  // The lower half of the ranks lies left of the upper half.
+  double left = -1e300, right = 1e300;
+  for (int a = 0; a < N; ++a)
+    (d.rank(a) < N / 2 ? left : right) = d.rank(a) < N / 2 ? std::max(left, P.mesh.nodes()(0, a))
+                                                            : std::min(right, P.mesh.nodes()(0, a));
+  CHECK(left <= right);
+  int by_rank = 0, by_index = 0;
+  for (int t = 0; t < d.cells(); ++t) {
+    const auto u = d.nodes(t);
+    int lo = N, hi = -1;
+    for (const int a : u) lo = std::min(lo, d.rank(a)), hi = std::max(hi, d.rank(a));
+    CHECK(d.min_rank(t) == lo);
+    CHECK(d.max_rank(t) == hi);
+    by_rank += lo < N / 2 && hi >= N / 2 ? 1 : 0;
+    by_index += u.front() < N / 2 && u.back() >= N / 2 ? 1 : 0;
+  }
+  CAPTURE(by_rank, by_index, d.cells());
+  CHECK(by_rank < by_index / 2);
+}

@@ -149,8 +149,10 @@ struct CountingSystem {
                      Linearization k = Linearization::newton) {
     s.apply_tangent(X, v, Jv, k);
   }
+  bool symmetric(Linearization k) const { return s.symmetric(k); }
 };
 static_assert(MatrixFreePicardSystem<CountingSystem>);
+static_assert(SymmetricSystem<CountingSystem>);
 }  // namespace
 
 TEST_CASE("warm-started Picard iterations that a kept LU serves assemble no matrix; the same solution",
@@ -639,6 +641,91 @@ TEST_CASE("DirectSolver (MUMPS where built with it): the LU of a saddle system, 
   CHECK(g.exact_factorizations() == 0);  // GMRES refines the float factors
   CHECK((A * w + R).norm() <= 1e-9 * R.norm());
   CHECK((w - x_ref).norm() <= 1e-7 * x_ref.norm());
+}
+
+TEST_CASE("Picard's and newton_symmetric's matrices are symmetric; their L D L^T", "[flow][solver][direct]") {
+  auto P = compression(0.2);
+  NonlinearSolver<> direct;
+  Eigen::VectorXd X;
+  REQUIRE(direct.solve(*P.system, X).converged);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> g;
+  for (Eigen::Index k = 0; k < X.size(); ++k) X[k] *= 1.0 + 0.05 * g(rng);  // away from the solution
+  using Matrix = SystemPattern::Matrix;
+  Matrix A, S, N;
+  Eigen::VectorXd R, RS, RN;
+  P.system->assemble(X, Linearization::picard, A, R);
+  P.system->assemble(X, Linearization::newton_symmetric, S, RS);
+  P.system->assemble(X, Linearization::newton, N, RN);
+  CHECK(P.system->symmetric(Linearization::picard));
+  CHECK(P.system->symmetric(Linearization::newton_symmetric));
+  CHECK_FALSE(P.system->symmetric(Linearization::newton));
+  const auto asymmetry = [](const Matrix& M) { return (M - Matrix(M.transpose())).norm() / M.norm(); };
+  CHECK(asymmetry(A) <= 1e-15);
+  CHECK(asymmetry(S) <= 1e-15);
+  CHECK(asymmetry(N) > 1e-8);  // far above round-off
+  CHECK((RS - R).norm() == 0.0);  // every kind's residual is the same
+  CHECK((RN - R).norm() == 0.0);
+  // newton_symmetric is Newton's tangent without d tau / d v: the two differ
+  // in the pressure rows only, there by the tangent's asymmetric part.
+  const int nv = DofLayout::fields_of(P.system->number_of_nodes());
+  const Matrix D = N - S;
+  double off = 0.0, on = 0.0;
+  for (int j = 0; j < D.outerSize(); ++j)
+    for (Matrix::InnerIterator it(D, j); it; ++it)
+      (it.row() < nv && it.row() % 3 == 2 && j < nv && j % 3 != 2 ? on : off) += std::abs(it.value());
+  CHECK(on > 1e-6 * N.norm());
+  CHECK(off <= 1e-12 * N.norm());
+  // newton_symmetric's matrix-free product is its matrix's.
+  Eigen::VectorXd v(X.size()), Sv;
+  for (Eigen::Index k = 0; k < v.size(); ++k) v[k] = g(rng);
+  P.system->apply_tangent(X, v, Sv, Linearization::newton_symmetric);
+  CHECK((Sv - S * v).norm() <= 1e-12 * (S * v).norm());
+#ifdef MAXENTFLOW_HAVE_MUMPS
+  // L D L^T of the symmetric saddle matrix from its lower triangle, exact in
+  // double precision, refactorized on the same pattern; an LU where asked.
+  BasicMumpsSolver<double> ldlt;
+  ldlt.set_symmetric(true);
+  ldlt.analyze(S);
+  ldlt.factorize(S);
+  const Eigen::VectorXd x = ldlt.solve(-R);
+  CHECK((S * x + R).norm() <= 1e-12 * (S.norm() * x.norm() + R.norm()));
+  const Matrix S3 = 3.0 * S;
+  ldlt.factorize(S3);
+  CHECK((S3 * ldlt.solve(-R) + R).norm() <= 1e-12 * (S3.norm() * x.norm() + R.norm()));
+  Matrix I(S.rows(), S.cols());
+  I.setIdentity();
+  I.makeCompressed();
+  CHECK_THROWS_AS(ldlt.factorize(I), Error);  // not the analysed pattern
+  ldlt.set_symmetric(false);
+  ldlt.analyze(N);
+  ldlt.factorize(N);
+  CHECK((N * ldlt.solve(-R) + R).norm() <= 1e-12 * (N.norm() * x.norm() + R.norm()));
+  // The kept LU's solver: single-precision L D L^T, which GMRES refines.
+  KeptLuSolver k;
+  k.set_symmetric(true);
+  k.analyze(S);
+  k.factorize(S);
+  CHECK((S * k.solve(-R) + R).norm() <= 1e-2 * R.norm());
+#endif
+  // Kept LUs of symmetric matrices or not: the same solution from a warm start.
+  for (const bool symmetric_lu : {true, false}) {
+    CAPTURE(symmetric_lu);
+    NonlinearSolverParams prm;
+    prm.newton_from_warm_start = false;
+    prm.symmetric_lu = symmetric_lu;
+    NonlinearSolver<GmresSolver<>> s(prm);
+    auto Q = compression(0.2);
+    Eigen::VectorXd Y;
+    REQUIRE(s.solve(*Q.system, Y).converged);
+    Eigen::VectorXd Y0 = Y;
+    Y = 1.05 * Y0;
+    const SolveReport r = s.solve(*Q.system, Y);
+    INFO(r.log());
+    REQUIRE(r.converged);
+    CHECK(r.direct_fallbacks == 0);
+    CHECK((Y - Y0).lpNorm<Eigen::Infinity>() <= 1e-6 * Y0.lpNorm<Eigen::Infinity>());
+  }
 }
 
 TEST_CASE("the Krylov preconditioner is kept while it works, with the same solution",

@@ -42,10 +42,11 @@ struct Upset {
 // Frictionless upsetting between flat plates (contact, not prescribed
 // velocities): the homogeneous solution V1 / V2 at every step.
 Upset upsetting(Geometry g, int steps, double dt, Predictor predictor = Predictor::material,
-               const AnyContactLaw& law = Frictionless{}) {
+               const AnyContactLaw& law = Frictionless{}, bool symmetric_lu = true) {
   const double R0 = 10, H0 = 12, V = 0.06;
   const NortonHoff mat(150.0, 0.2, 1e-8);
   StepperParams prm;
+  prm.solver.symmetric_lu = symmetric_lu;
   prm.geometry = g;
   prm.dt = dt;
   prm.predictor = predictor;
@@ -103,10 +104,12 @@ TEST_CASE("V1 along the stroke: plane-strain compression by contact stays exact"
 
 TEST_CASE("V1 and V2 along the stroke with m = 0 and mu = 0: the frictionless run to 1e-12",
           "[verification][stepper][friction]") {
-  // Tresca and Coulomb with a zero coefficient add a zero traction: the same run.
+  // Tresca and Coulomb with a zero coefficient add a zero traction: the same
+  // run, with the same linear algebra (a friction law's matrices are not
+  // symmetric, so their kept LUs are LUs: the reference's too).
   for (const Geometry g : {Geometry::axisymmetric, Geometry::plane_strain}) {
     CAPTURE(g == Geometry::axisymmetric);
-    const auto ref = upsetting(g, 30, 1.0);
+    const auto ref = upsetting(g, 30, 1.0, Predictor::material, Frictionless{}, false);
     for (const AnyContactLaw& law : {AnyContactLaw(Tresca(0.0, 6e-4)), AnyContactLaw(Coulomb(0.0, 6e-4))}) {
       CAPTURE(law.name());
       const auto u = upsetting(g, 30, 1.0, Predictor::material, law);

@@ -155,6 +155,15 @@ class FlowSystem {
     return layout_;
   }
 
+  /// The matrix assemble() builds of this kind is symmetric: Picard's and
+  /// newton_symmetric's (O^T D O per Gauss point with D symmetric, the
+  /// constraints as L and L^T), unless a velocity traction (friction) adds
+  /// its non-symmetric derivatives. Newton's is not (d tau / d v couples the
+  /// pressure-gradient rows to the strain rate alone).
+  bool symmetric(Linearization kind) const {
+    return kind != Linearization::newton && velocity_tractions_.empty();
+  }
+
   /// A at X (Picard or Newton) and the residual R(X) = A_picard(X) X - F.
   void assemble(const Eigen::VectorXd& X, Linearization kind, Matrix& A, Eigen::VectorXd& R) {
     update_structure();

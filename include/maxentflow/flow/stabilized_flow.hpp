@@ -261,7 +261,8 @@ class StabilizedFlowAssembler {
   /// linearize() (the matrix assemble() builds with Linearization::newton)
   /// applied to v without forming it, at the cost of a residual evaluation;
   /// with Linearization::picard the Picard matrix's product (the same point
-  /// operators without the derivatives of mu and tau). Jv has size >= 3N.
+  /// operators without the derivatives of mu and tau), with newton_symmetric
+  /// the tangent's without d tau / d v. Jv has size >= 3N.
   void apply_tangent(const Eigen::VectorXd& v, Eigen::VectorXd& Jv,
                      Linearization kind = Linearization::newton) const;
 
@@ -278,24 +279,40 @@ class StabilizedFlowAssembler {
     double dmu_dd_over_d;
     double sx, sy;  // grad p - f (f only with stabilize_body_force)
   };
-  // z = O_q Y at point q of cell t (Y: 3 coefficients per node).
-  void point_rows(std::span<const int> u, const double* p, const double* dp, double r, bool axi, int ns,
-                  const Eigen::VectorXd& Y, double* z) const {
-    double ett = 0.0;
-    for (int k = 0; k < ns + 3; ++k) z[k] = 0.0;
-    for (std::size_t i = 0; i < u.size(); ++i) {
+  // The coefficients of Y on a cell's nodes u, by component: c[k n + i] =
+  // Y[3 u_i + k]. Gathered once per cell, so that each Gauss point's loops
+  // run over contiguous arrays (vectorized) instead of indexing Y.
+  static void gather(std::span<const int> u, const Eigen::VectorXd& Y, double* c) {
+    const auto n = u.size();
+    for (std::size_t i = 0; i < n; ++i) {
       const int a = u[i];
-      const double vx = Y[nf * a], vy = Y[nf * a + 1], pa = Y[nf * a + 2];
-      const double gx = dp[2 * i], gy = dp[2 * i + 1];
-      z[0] += gx * vx;
-      z[1] += gy * vy;
-      ett += p[i] * vx;
-      z[ns - 1] += gy * vx + gx * vy;
-      z[ns] += p[i] * pa;
-      z[ns + 1] += gx * pa;
-      z[ns + 2] += gy * pa;
+      c[i] = Y[nf * a];
+      c[n + i] = Y[nf * a + 1];
+      c[2 * n + i] = Y[nf * a + 2];
     }
+  }
+  // z = O_q Y at a Gauss point from the cell's gathered coefficients c.
+  static void point_rows(const double* c, int n, const double* p, const double* dp, double r, bool axi, int ns,
+                         double* z) {
+    const double *vx = c, *vy = c + n, *pa = c + 2 * n;
+    double exx = 0.0, eyy = 0.0, gxy = 0.0, ett = 0.0, pq = 0.0, px = 0.0, py = 0.0;
+    for (int i = 0; i < n; ++i) {
+      const double gx = dp[2 * i], gy = dp[2 * i + 1];
+      exx += gx * vx[i];
+      eyy += gy * vy[i];
+      gxy += gy * vx[i] + gx * vy[i];
+      ett += p[i] * vx[i];
+      pq += p[i] * pa[i];
+      px += gx * pa[i];
+      py += gy * pa[i];
+    }
+    z[0] = exx;
+    z[1] = eyy;
     if (axi) z[2] = ett / r;  // hoop strain rate v_r / r
+    z[ns - 1] = gxy;
+    z[ns] = pq;
+    z[ns + 1] = px;
+    z[ns + 2] = py;
   }
   PointLaw point_law(const double* z, int ns, double rho, const Eigen::Vector2d& bs, int g) const {
     const FlowDiscretization& disc = *disc_;
@@ -321,8 +338,10 @@ class StabilizedFlowAssembler {
     L.pq = z[ns];
     return L;
   }
-  // D_q: the linearized point operator (weight w included), Picard or Newton.
-  static void point_operator(const PointLaw& L, double w, bool newton, int ns, PointOperator& Dq) {
+  // D_q: the linearized point operator (weight w included), Picard or Newton
+  // (with or without d tau / d eps).
+  static void point_operator(const PointLaw& L, double w, bool newton, bool tau_derivative, int ns,
+                             PointOperator& Dq) {
     Dq.setZero();
     for (int k = 0; k < ns; ++k) {
       Dq(k, k) = w * 2.0 * L.mu * (k == ns - 1 ? 0.5 : 1.0);
@@ -335,6 +354,7 @@ class StabilizedFlowAssembler {
       const double alpha = 2.0 * two_thirds * L.dmu_dd_over_d;  // (4/3) mu'/d
       for (int k = 0; k < ns; ++k)
         for (int l = 0; l < ns; ++l) Dq(k, l) += w * alpha * L.Qeps[k] * L.Qeps[l];
+      if (!tau_derivative) return;
       // d tau / d eps = -tau (mu'/d) / mu (2/3) Q eps
       const double beta = -L.tau * L.dmu_dd_over_d / L.mu * two_thirds;
       for (int l = 0; l < ns; ++l) {
@@ -343,15 +363,17 @@ class StabilizedFlowAssembler {
       }
     }
   }
-  // out += O_q^T y for the cell's nodes (3 per node).
+  // out += O_q^T y for the cell's nodes, by component (out[k n + i]).
   static void add_transposed(const double* y, const double* p, const double* dp, int n, double r, bool axi,
-                             int ns, Eigen::VectorXd& out) {
-    const double yt = axi ? y[2] / r : 0.0;
+                             int ns, double* out) {
+    const double yt = axi ? y[2] / r : 0.0, y0 = y[0], y1 = y[1], ys = y[ns - 1];
+    const double yp = y[ns], ygx = y[ns + 1], ygy = y[ns + 2];
+    double *ox = out, *oy = out + n, *op = out + 2 * n;
     for (int i = 0; i < n; ++i) {
       const double gx = dp[2 * i], gy = dp[2 * i + 1];
-      out[nf * i] += gx * y[0] + p[i] * yt + gy * y[ns - 1];
-      out[nf * i + 1] += gy * y[1] + gx * y[ns - 1];
-      out[nf * i + 2] += p[i] * y[ns] + gx * y[ns + 1] + gy * y[ns + 2];
+      ox[i] += gx * y0 + p[i] * yt + gy * ys;
+      oy[i] += gy * y1 + gx * ys;
+      op[i] += p[i] * yp + gx * ygx + gy * ygy;
     }
   }
 
@@ -363,23 +385,24 @@ class StabilizedFlowAssembler {
   // over q (one column per node), Tc[c] the same rows of T = D O. A third of
   // the dense product's work.
   struct CellWork {
-    CellWork(bool axi_, bool newton_, bool matrix_)
-        : axi(axi_), newton(newton_), matrix(matrix_), ns(axi_ ? 4 : 3),
+    CellWork(bool axi_, Linearization kind, bool matrix_)
+        : axi(axi_), newton(kind != Linearization::picard), tau_derivative(kind == Linearization::newton),
+          matrix(matrix_), ns(axi_ ? 4 : 3),
           rows_of{axi_ ? 3 : 2, 2, 3},
           row_index{{0, axi_ ? 2 : ns - 1, ns - 1}, {1, ns - 1, 0}, {ns, ns + 1, ns + 2}} {}
-    bool axi, newton, matrix;
+    bool axi, newton, tau_derivative, matrix;
     int ns;  // strain rows: eps_xx, eps_yy, (eps_tt), gamma_xy
     int rows_of[nf];
     int row_index[nf][3];
     Eigen::MatrixXd Oc[nf], Tc[nf], Ac[nf], Tq;
-    Eigen::VectorXd rloc, floc;
+    Eigen::VectorXd xloc, rloc, floc;  // by component (gather)
     std::vector<int> kpos;
     PointOperator Dq;
   };
   void integrate_cell(int t, const Eigen::VectorXd& X, CellWork& cw, FlowPointState* state) const;
   static void point_matrix_rows(int q, int n, const double* p, const double* dp, double r, CellWork& cw);
-  static void scatter_cell(std::span<const int> u, CellWork& cw, int lo, int hi, const SystemPattern& pat,
-                           Matrix* A, Eigen::VectorXd& R, Eigen::VectorXd* fint);
+  static void scatter_cell(const FlowDiscretization& disc, int t, CellWork& cw, int lo, int hi,
+                           const SystemPattern& pat, Matrix* A, Eigen::VectorXd& R, Eigen::VectorXd* fint);
 
   const FlowDiscretization* disc_;
   Material material_;
@@ -413,12 +436,11 @@ void StabilizedFlowAssembler<Material>::assemble(const Eigen::VectorXd& X, Linea
     const int tid = thread_id(), nth = team_size();
     const int lo = static_cast<int>(static_cast<long>(N) * tid / nth);
     const int hi = static_cast<int>(static_cast<long>(N) * (tid + 1) / nth);
-    CellWork cw(disc.axisymmetric(), kind == Linearization::newton, A != nullptr);
+    CellWork cw(disc.axisymmetric(), kind, A != nullptr);
     for (int t = 0; t < disc.cells(); ++t) {
-      const auto u = disc.nodes(t);
-      if (u.back() < lo || u.front() >= hi) continue;
-      integrate_cell(t, X, cw, u.front() >= lo ? state : nullptr);  // one thread writes each point
-      scatter_cell(u, cw, lo, hi, pat, A, R, fint);
+      if (disc.max_rank(t) < lo || disc.min_rank(t) >= hi) continue;
+      integrate_cell(t, X, cw, disc.min_rank(t) >= lo ? state : nullptr);  // one thread writes each point
+      scatter_cell(disc, t, cw, lo, hi, pat, A, R, fint);
     }
   }
 }
@@ -429,6 +451,8 @@ void StabilizedFlowAssembler<Material>::integrate_cell(int t, const Eigen::Vecto
   const FlowDiscretization& disc = *disc_;
   const auto u = disc.nodes(t);
   const int n = static_cast<int>(u.size()), nd = nf * n, ns = cw.ns, nq = disc.points_per_cell();
+  cw.xloc.resize(nd);
+  gather(u, X, cw.xloc.data());
   cw.rloc.setZero(nd);
   cw.floc.setZero(nd);
   if (cw.matrix) {
@@ -447,7 +471,7 @@ void StabilizedFlowAssembler<Material>::integrate_cell(int t, const Eigen::Vecto
     const double r = disc.points()(0, g);
     // Current fields at the point: strain rate, pressure, grad p.
     double z[7];
-    point_rows(u, p, dp, r, cw.axi, ns, X, z);
+    point_rows(cw.xloc.data(), n, p, dp, r, cw.axi, ns, z);
     const Eigen::Vector2d b = body_ ? body_(disc.points().col(g)) : Eigen::Vector2d::Zero();
     const Eigen::Vector2d bs = prm_.stabilize_body_force ? b : Eigen::Vector2d::Zero();
     const PointLaw L = point_law(z, ns, disc.rho(g), bs, g);
@@ -464,13 +488,14 @@ void StabilizedFlowAssembler<Material>::integrate_cell(int t, const Eigen::Vecto
     y[ns] = -w * L.div;
     y[ns + 1] = -w * L.tau * L.sx;
     y[ns + 2] = -w * L.tau * L.sy;
-    add_transposed(y, p, dp, n, r, cw.axi, ns, cw.rloc);
-    for (int i = 0; i < n; ++i) {  // the body force
-      cw.floc[nf * i] -= w * p[i] * b.x();
-      cw.floc[nf * i + 1] -= w * p[i] * b.y();
-    }
+    add_transposed(y, p, dp, n, r, cw.axi, ns, cw.rloc.data());
+    if (body_)
+      for (int i = 0; i < n; ++i) {
+        cw.floc[i] -= w * p[i] * b.x();
+        cw.floc[n + i] -= w * p[i] * b.y();
+      }
     if (!cw.matrix) continue;
-    point_operator(L, w, cw.newton, ns, cw.Dq);
+    point_operator(L, w, cw.newton, cw.tau_derivative, ns, cw.Dq);
     point_matrix_rows(q, n, p, dp, r, cw);
   }
   cw.rloc += cw.floc;
@@ -514,19 +539,21 @@ void StabilizedFlowAssembler<Material>::point_matrix_rows(int q, int n, const do
 }
 
 template <ViscosityLaw Material>
-void StabilizedFlowAssembler<Material>::scatter_cell(std::span<const int> u, CellWork& cw, int lo, int hi,
-                                                     const SystemPattern& pat, Matrix* A, Eigen::VectorXd& R,
-                                                     Eigen::VectorXd* fint) {
-  // The owned rows (residual) and columns (matrix) of this thread's nodes.
+void StabilizedFlowAssembler<Material>::scatter_cell(const FlowDiscretization& disc, int t, CellWork& cw, int lo,
+                                                     int hi, const SystemPattern& pat, Matrix* A,
+                                                     Eigen::VectorXd& R, Eigen::VectorXd* fint) {
+  // The owned rows (residual) and columns (matrix) of this thread's nodes
+  // (ranks lo..hi-1).
+  const auto u = disc.nodes(t);
   const int n = static_cast<int>(u.size());
   double* values = A ? A->valuePtr() : nullptr;
   const int* outer = A ? A->outerIndexPtr() : nullptr;
   for (int j = 0; j < n; ++j) {
     const int b = u[static_cast<std::size_t>(j)];
-    if (b < lo || b >= hi) continue;
-    for (int c = 0; c < nf; ++c) R[nf * b + c] += cw.rloc[nf * j + c];
+    if (disc.rank(b) < lo || disc.rank(b) >= hi) continue;
+    for (int c = 0; c < nf; ++c) R[nf * b + c] += cw.rloc[c * n + j];
     if (fint)
-      for (int c = 0; c < 2; ++c) (*fint)[nf * b + c] += cw.rloc[nf * j + c] - cw.floc[nf * j + c];
+      for (int c = 0; c < 2; ++c) (*fint)[nf * b + c] += cw.rloc[c * n + j] - cw.floc[c * n + j];
     if (!A) continue;
     cw.kpos.resize(static_cast<std::size_t>(n));
     const int* it = pat.adjacency_begin(b);
@@ -559,27 +586,34 @@ void StabilizedFlowAssembler<Material>::linearize(const Eigen::VectorXd& X) {
   const int nq = disc.points_per_cell();
   require(X.size() >= nf * N, "X needs 3 entries per node", "StabilizedFlowAssembler::linearize");
   tangent_.resize(static_cast<std::size_t>(disc.cells()) * nq);
-#pragma omp parallel for schedule(static) num_threads(std::max(1, std::min(max_threads(), N / 64 + 1)))
-  for (int t = 0; t < disc.cells(); ++t) {
-    const auto u = disc.nodes(t);
-    double z[7];
-    for (int q = 0; q < nq; ++q) {
-      const int g = t * nq + q;
-      point_rows(u, disc.values(t, q), disc.gradients(t, q), disc.points()(0, g), axi, ns, X, z);
-      const Eigen::Vector2d bs = prm_.stabilize_body_force && body_ ? body_(disc.points().col(g))
-                                                                    : Eigen::Vector2d::Zero();
-      const PointLaw L = point_law(z, ns, disc.rho(g), bs, g);
-      const double w = disc.weight(g);
-      PointTangent& T = tangent_[static_cast<std::size_t>(g)];
-      T.w = w;
-      T.w2mu = w * 2.0 * L.mu;
-      T.wtau = w * L.tau;
-      const double alpha = 2.0 * two_thirds * L.dmu_dd_over_d;  // (4/3) mu'/d
-      const double beta = -L.tau * L.dmu_dd_over_d / L.mu * two_thirds;  // d tau / d eps = beta Q eps
-      T.walpha = w * alpha;
-      T.wbsx = -w * L.sx * beta;
-      T.wbsy = -w * L.sy * beta;
-      for (int k = 0; k < 4; ++k) T.Qeps[k] = k < ns ? L.Qeps[k] : 0.0;
+#pragma omp parallel num_threads(std::max(1, std::min(max_threads(), N / 64 + 1)))
+  {
+    std::vector<double> xloc;
+#pragma omp for schedule(static)
+    for (int t = 0; t < disc.cells(); ++t) {
+      const auto u = disc.nodes(t);
+      const int n = static_cast<int>(u.size());
+      xloc.resize(static_cast<std::size_t>(nf * n));
+      gather(u, X, xloc.data());
+      double z[7];
+      for (int q = 0; q < nq; ++q) {
+        const int g = t * nq + q;
+        point_rows(xloc.data(), n, disc.values(t, q), disc.gradients(t, q), disc.points()(0, g), axi, ns, z);
+        const Eigen::Vector2d bs = prm_.stabilize_body_force && body_ ? body_(disc.points().col(g))
+                                                                      : Eigen::Vector2d::Zero();
+        const PointLaw L = point_law(z, ns, disc.rho(g), bs, g);
+        const double w = disc.weight(g);
+        PointTangent& T = tangent_[static_cast<std::size_t>(g)];
+        T.w = w;
+        T.w2mu = w * 2.0 * L.mu;
+        T.wtau = w * L.tau;
+        const double alpha = 2.0 * two_thirds * L.dmu_dd_over_d;  // (4/3) mu'/d
+        const double beta = -L.tau * L.dmu_dd_over_d / L.mu * two_thirds;  // d tau / d eps = beta Q eps
+        T.walpha = w * alpha;
+        T.wbsx = -w * L.sx * beta;
+        T.wbsy = -w * L.sy * beta;
+        for (int k = 0; k < 4; ++k) T.Qeps[k] = k < ns ? L.Qeps[k] : 0.0;
+      }
     }
   }
   linearized_ = true;
@@ -597,26 +631,29 @@ void StabilizedFlowAssembler<Material>::apply_tangent(const Eigen::VectorXd& v, 
           "linearize(X) first", "StabilizedFlowAssembler::apply_tangent");
   require(v.size() >= nf * N && Jv.size() >= nf * N, "v and Jv need 3 entries per node",
           "StabilizedFlowAssembler::apply_tangent");
-  const double newton = kind == Linearization::newton ? 1.0 : 0.0;  // Picard drops mu' and tau'
+  const double newton = kind == Linearization::picard ? 0.0 : 1.0;  // Picard drops mu' and tau'
+  const double tau_derivative = kind == Linearization::newton ? 1.0 : 0.0;
   const int threads = std::max(1, std::min(max_threads(), N / 64 + 1));
 #pragma omp parallel num_threads(threads)
   {
     const int tid = thread_id(), nth = team_size();
     const int lo = static_cast<int>(static_cast<long>(N) * tid / nth);
     const int hi = static_cast<int>(static_cast<long>(N) * (tid + 1) / nth);
-    Eigen::VectorXd jloc;
+    std::vector<double> vloc, jloc;  // by component (gather)
     double zv[7], y[7];
     for (int t = 0; t < disc.cells(); ++t) {
+      if (disc.max_rank(t) < lo || disc.min_rank(t) >= hi) continue;
       const auto u = disc.nodes(t);
-      if (u.back() < lo || u.front() >= hi) continue;
       const int n = static_cast<int>(u.size());
-      jloc.setZero(nf * n);
+      vloc.resize(static_cast<std::size_t>(nf * n));
+      gather(u, v, vloc.data());
+      jloc.assign(static_cast<std::size_t>(nf * n), 0.0);
       for (int q = 0; q < nq; ++q) {
         const int g = t * nq + q;
         const double* p = disc.values(t, q);
         const double* dp = disc.gradients(t, q);
         const double r = disc.points()(0, g);
-        point_rows(u, p, dp, r, axi, ns, v, zv);
+        point_rows(vloc.data(), n, p, dp, r, axi, ns, zv);
         // y = D_q zv, D_q as point_operator builds it for Newton.
         const PointTangent& T = tangent_[static_cast<std::size_t>(g)];
         double qz = 0.0, div = 0.0;
@@ -628,14 +665,14 @@ void StabilizedFlowAssembler<Material>::apply_tangent(const Eigen::VectorXd& v, 
           y[k] = T.w2mu * (shear ? 0.5 : 1.0) * zv[k] - (shear ? 0.0 : T.w * zv[ns]) + T.walpha * T.Qeps[k] * qz;
         }
         y[ns] = -T.w * div;
-        y[ns + 1] = -T.wtau * zv[ns + 1] + T.wbsx * qz;
-        y[ns + 2] = -T.wtau * zv[ns + 2] + T.wbsy * qz;
-        add_transposed(y, p, dp, n, r, axi, ns, jloc);
+        y[ns + 1] = -T.wtau * zv[ns + 1] + tau_derivative * T.wbsx * qz;
+        y[ns + 2] = -T.wtau * zv[ns + 2] + tau_derivative * T.wbsy * qz;
+        add_transposed(y, p, dp, n, r, axi, ns, jloc.data());
       }
       for (int j = 0; j < n; ++j) {
         const int b = u[static_cast<std::size_t>(j)];
-        if (b < lo || b >= hi) continue;
-        for (int c = 0; c < nf; ++c) Jv[nf * b + c] += jloc[nf * j + c];
+        if (disc.rank(b) < lo || disc.rank(b) >= hi) continue;
+        for (int c = 0; c < nf; ++c) Jv[nf * b + c] += jloc[static_cast<std::size_t>(c * n + j)];
       }
     }
   }

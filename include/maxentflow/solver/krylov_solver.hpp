@@ -193,9 +193,12 @@ class GmresSolver {
   /// A kept LU can precondition solves of the current layout and size.
   bool kept_usable(Eigen::Index n) const { return kept_ok_ && map_ok_ && layout_.size() == n; }
   /// LU of A, kept for the current layout; `exact`: in double precision
-  /// where the Kept policy factorizes in single precision by default.
-  void factorize_kept(const Matrix& A, bool exact = false) {
+  /// where the Kept policy factorizes in single precision by default;
+  /// `symmetric`: A is symmetric, and the Kept policy may factorize it as
+  /// L D L^T (half the work) where it can.
+  void factorize_kept(const Matrix& A, bool exact = false, bool symmetric = false) {
     kept_ok_ = false;
+    if constexpr (symmetric_kept) kept_.set_symmetric(symmetric);
     if constexpr (single_precision_kept) {
       kept_.set_exact(exact);
       if (exact) ++exact_factorizations_;
@@ -235,6 +238,8 @@ class GmresSolver {
   int kept_factorizations() const { return kept_factorizations_; }
   /// The Kept policy factorizes in single precision unless asked (set_exact).
   static constexpr bool single_precision_kept = requires(Kept& k) { k.set_exact(true); };
+  /// The Kept policy can factorize a symmetric matrix as L D L^T.
+  static constexpr bool symmetric_kept = requires(Kept& k) { k.set_symmetric(true); };
   /// Kept LUs made in double precision because a single-precision LU of the
   /// same matrix left GMRES short of its tolerance.
   int exact_factorizations() const { return exact_factorizations_; }

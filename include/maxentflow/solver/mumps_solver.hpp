@@ -55,23 +55,32 @@ class BasicMumpsSolver {
   /// True when solve() is exact to round-off in double precision.
   static constexpr bool exact = std::is_same_v<Scalar, double>;
 
-  BasicMumpsSolver() : id_(std::make_unique<typename Api::Struc>()) {
-    id_->comm_fortran = -987654;  // MUMPS's "no MPI communicator" (sequential library)
-    id_->par = 1;
-    id_->sym = 0;
-    call(-1, "initialization");
-    id_->icntl[0] = id_->icntl[1] = id_->icntl[2] = -1;  // no output
-    id_->icntl[3] = 0;
-  }
+  BasicMumpsSolver() { init(); }
   BasicMumpsSolver(BasicMumpsSolver&&) noexcept = default;
   BasicMumpsSolver& operator=(BasicMumpsSolver&& o) noexcept {
     end();
     id_ = std::move(o.id_);
     irn_ = std::move(o.irn_), jcn_ = std::move(o.jcn_), a_ = std::move(o.a_);
+    take_ = std::move(o.take_);
     rhs_ = std::move(o.rhs_);
+    full_nnz_ = o.full_nnz_;
+    symmetric_ = o.symmetric_;
     factorized_ = o.factorized_;
     return *this;
   }
+
+  /// From the next analyze() on: A is symmetric (to round-off), and is
+  /// factorized as L D L^T (MUMPS SYM = 2, symmetric indefinite: 2 x 2
+  /// pivots for the saddle system's zero diagonal) from its lower triangle,
+  /// in about half the flops and factor memory of an LU (a Picard matrix:
+  /// docs/method.md section 8).
+  void set_symmetric(bool symmetric) {
+    if (symmetric == symmetric_) return;
+    symmetric_ = symmetric;
+    end();
+    init();
+  }
+  bool symmetric() const { return symmetric_; }
   BasicMumpsSolver(const BasicMumpsSolver&) = delete;
   BasicMumpsSolver& operator=(const BasicMumpsSolver&) = delete;
   ~BasicMumpsSolver() { end(); }
@@ -81,13 +90,19 @@ class BasicMumpsSolver {
     const char* where = "MumpsSolver::analyze";
     require(A.rows() == A.cols() && A.rows() > 0, detail::cat("A is ", A.rows(), " x ", A.cols()), where);
     require(A.isCompressed(), "A must be compressed", where);
-    irn_.resize(static_cast<std::size_t>(A.nonZeros()));
-    jcn_.resize(irn_.size());
+    // The entries MUMPS reads: all, or the lower triangle (it would sum a
+    // symmetric matrix's (i, j) and (j, i)).
+    irn_.clear();
+    jcn_.clear();
+    take_.clear();
     for (int j = 0; j < A.outerSize(); ++j)
-      for (int k = A.outerIndexPtr()[j]; k < A.outerIndexPtr()[j + 1]; ++k) {
-        irn_[static_cast<std::size_t>(k)] = A.innerIndexPtr()[k] + 1;
-        jcn_[static_cast<std::size_t>(k)] = j + 1;
-      }
+      for (int k = A.outerIndexPtr()[j]; k < A.outerIndexPtr()[j + 1]; ++k)
+        if (!symmetric_ || A.innerIndexPtr()[k] >= j) {
+          irn_.push_back(A.innerIndexPtr()[k] + 1);
+          jcn_.push_back(j + 1);
+          take_.push_back(k);
+        }
+    full_nnz_ = A.nonZeros();
     // ICNTL(7): AMD up to amd_max_unknowns, MUMPS's own choice above. On
     // max-ent systems of 4k-5k nodes (12k-15k unknowns) AMD gives the same
     // fill and factorization time as the nested dissection MUMPS picks
@@ -95,10 +110,11 @@ class BasicMumpsSolver {
     // analysis is a quarter to a third of each kept LU's cost).
     id_->icntl[6] = A.rows() <= amd_max_unknowns ? 0 : 7;
     id_->n = static_cast<MUMPS_INT>(A.rows());
-    id_->nnz = static_cast<MUMPS_INT8>(A.nonZeros());
+    id_->nnz = static_cast<MUMPS_INT8>(take_.size());
     id_->irn = irn_.data();
     id_->jcn = jcn_.data();
-    a_.assign(A.valuePtr(), A.valuePtr() + A.nonZeros());  // the analysis may scale by the values
+    a_.resize(take_.size());
+    gather_values(A);  // the analysis may scale by the values
     id_->a = a_.data();
     factorized_ = false;
     call(1, "analysis");
@@ -108,9 +124,9 @@ class BasicMumpsSolver {
     const char* where = "MumpsSolver::factorize";
     require(A.isCompressed() && same_pattern(A),
             detail::cat("A (", A.rows(), " unknowns, ", A.nonZeros(), " nonzeros) has not the analysed pattern (",
-                        id_->n, " unknowns, ", a_.size(), " nonzeros)"),
+                        id_->n, " unknowns, ", full_nnz_, " nonzeros)"),
             where);
-    std::copy_n(A.valuePtr(), A.nonZeros(), a_.data());  // to Scalar
+    gather_values(A);
     id_->a = a_.data();
     factorized_ = false;
     // The workspace MUMPS estimates in the analysis can fall short when
@@ -141,15 +157,31 @@ class BasicMumpsSolver {
   static constexpr Eigen::Index amd_max_unknowns = 30000;
 
  private:
+  void init() {
+    id_ = std::make_unique<typename Api::Struc>();
+    id_->comm_fortran = -987654;  // MUMPS's "no MPI communicator" (sequential library)
+    id_->par = 1;
+    id_->sym = symmetric_ ? 2 : 0;
+    call(-1, "initialization");
+    id_->icntl[0] = id_->icntl[1] = id_->icntl[2] = -1;  // no output
+    id_->icntl[3] = 0;
+    factorized_ = false;
+  }
+  void gather_values(const Matrix& A) {
+    for (std::size_t i = 0; i < take_.size(); ++i) a_[i] = static_cast<Scalar>(A.valuePtr()[take_[i]]);
+  }
   // A's pattern is the analysed one (same size, nonzeros, row indices per column).
   bool same_pattern(const Matrix& A) const {
-    if (A.rows() != id_->n || A.cols() != id_->n || static_cast<std::size_t>(A.nonZeros()) != a_.size())
-      return false;
+    if (A.rows() != id_->n || A.cols() != id_->n || A.nonZeros() != full_nnz_) return false;
+    std::size_t i = 0;
     for (int j = 0; j < A.outerSize(); ++j)
-      for (int k = A.outerIndexPtr()[j]; k < A.outerIndexPtr()[j + 1]; ++k)
-        if (jcn_[static_cast<std::size_t>(k)] != j + 1 || irn_[static_cast<std::size_t>(k)] != A.innerIndexPtr()[k] + 1)
+      for (int k = A.outerIndexPtr()[j]; k < A.outerIndexPtr()[j + 1]; ++k) {
+        if (symmetric_ && A.innerIndexPtr()[k] < j) continue;
+        if (i >= take_.size() || take_[i] != k || jcn_[i] != j + 1 || irn_[i] != A.innerIndexPtr()[k] + 1)
           return false;
-    return true;
+        ++i;
+      }
+    return i == take_.size();
   }
   void call(int job, const char* what) const {
     id_->job = job;
@@ -175,10 +207,12 @@ class BasicMumpsSolver {
 
   // MUMPS writes to its structure in every call, solves included.
   std::unique_ptr<typename Api::Struc> id_;
-  std::vector<MUMPS_INT> irn_, jcn_;  // 1-based coordinates of A's pattern
+  std::vector<MUMPS_INT> irn_, jcn_;  // 1-based coordinates of the entries MUMPS reads
   std::vector<Scalar> a_;
+  std::vector<int> take_;  // their positions in A's values
+  Eigen::Index full_nnz_ = 0;
   mutable Vector rhs_;
-  bool factorized_ = false;
+  bool symmetric_ = false, factorized_ = false;
 };
 
 using MumpsSolver = BasicMumpsSolver<double>;
@@ -214,6 +248,12 @@ class MixedMumpsSolver {
   Eigen::VectorXd solve(const Eigen::VectorXd& b) const { return use_double_ ? double_.solve(b) : single_.solve(b); }
   /// Double-precision factors from the next factorize() on (until set_exact(false)).
   void set_exact(bool exact) { exact_ = exact; }
+  /// L D L^T from the next analyze() on (BasicMumpsSolver::set_symmetric).
+  void set_symmetric(bool symmetric) {
+    single_.set_symmetric(symmetric);
+    double_.set_symmetric(symmetric);
+    double_analyzed_ = false;
+  }
   /// The factors in use are double precision.
   bool exact() const { return use_double_; }
   static constexpr const char* name() { return "MUMPS (single-precision factors, double on request)"; }

@@ -62,6 +62,14 @@ concept MatrixFreePicardSystem = LayoutKeyedSystem<S> && requires(S& s, const Ei
   s.apply_tangent(x, x, y, Linearization::picard);
 };
 
+/// A system that says which of its matrices are symmetric, and can assemble
+/// Newton's tangent without d tau / d v (Linearization::newton_symmetric),
+/// so that kept LUs can be L D L^T (NonlinearSolverParams::symmetric_lu).
+template <class S>
+concept SymmetricSystem = LayoutKeyedSystem<S> && requires(const S& s, Linearization kind) {
+  { s.symmetric(kind) } -> std::convertible_to<bool>;
+};
+
 /// Either kind of linear-solver policy: direct (LinearSolver) or Krylov
 /// with a preconditioner the system assembles (PreconditionedLinearSolver).
 template <class S>
@@ -195,6 +203,13 @@ struct NonlinearSolverParams {
   /// Where the system applies its Picard matrix matrix-free
   /// (MatrixFreePicardSystem), such an iteration assembles no matrix either.
   bool kept_lu_picard = true;
+  /// Kept LUs of symmetric matrices are L D L^T, where the policy can and
+  /// the system says its matrix is symmetric (SymmetricSystem): Picard's,
+  /// and for Newton the tangent without d tau / d v
+  /// (Linearization::newton_symmetric), GMRES taking that term in. Half the
+  /// flops and factor memory of an LU; E2: 1-2 % more GMRES iterations,
+  /// 100 steps 31.7-33.2 -> 23.8-27.8 s (docs/method.md section 8).
+  bool symmetric_lu = true;
   int kept_lu_max_unknowns = 20000;
   std::ostream* log = nullptr;     ///< per-iteration log
 };
@@ -263,10 +278,18 @@ class NonlinearSolver {
       // An iteration the kept LU serves applies its matrix matrix-free (a
       // Picard one where the system can): only the residual is evaluated.
       const bool newton = kind == Linearization::newton;
+      // Newton's kept LU, where it is made of newton_symmetric's matrix, needs
+      // no assembly of Newton's tangent (applied matrix-free).
       const bool assembled = !(kept && (newton || MatrixFreePicardSystem<System>) &&
-                               kept_lu_current(newton ? linear_ : picard_linear_, n));
+                               (kept_lu_current(newton ? linear_ : picard_linear_, n) ||
+                                (newton && symmetric_newton_lu(sys))));
+      // A kept Newton LU of newton_symmetric's matrix that is due for this
+      // layout: that matrix with the residual, in one pass.
+      symmetric_assembled_ = !assembled && newton && kept && symmetric_newton_lu(sys) && !kept_lu_current(linear_, n);
       if (assembled)
         sys.assemble(X, kind, A_, R);
+      else if (symmetric_assembled_)
+        sys.assemble(X, Linearization::newton_symmetric, S_, R);
       else
         sys.residual(X, R);
       rep.assembly_seconds += seconds(t0);
@@ -452,6 +475,27 @@ class NonlinearSolver {
     *prm_.log << line;
   }
 
+  // The system says its matrix of this kind is symmetric (SymmetricSystem),
+  // and symmetric_lu lets the kept LUs use that.
+  template <class System>
+  bool symmetric_matrix(System& sys, Linearization kind) const {
+    if constexpr (SymmetricSystem<System>)
+      return prm_.symmetric_lu && sys.symmetric(kind);
+    else
+      return false;
+  }
+
+  // Newton's kept LU is the L D L^T of the system's newton_symmetric matrix
+  // (symmetric_lu, where the policy has symmetric kept LUs and the system
+  // that matrix).
+  template <class System>
+  bool symmetric_newton_lu(System& sys) const {
+    if constexpr (requires { Linear::symmetric_kept; })
+      return Linear::symmetric_kept && symmetric_matrix(sys, Linearization::newton_symmetric);
+    else
+      return false;
+  }
+
   // Newton with the kept LU applies (KeptLuLinearSolver, LayoutKeyedSystem, size).
   template <class System>
   bool use_kept_lu(System& sys, int n) {
@@ -488,17 +532,24 @@ class NonlinearSolver {
     auto refactor = [&](const char* why, bool exact = false) {
       if (prm_.log) *prm_.log << "  kept " << (newton ? "newton" : "picard") << " LU made: " << why << "\n";
       auto t0 = clock::now();
-      if (!assembled) {
-        Eigen::VectorXd R2;
+      const bool symmetric_newton = newton && symmetric_newton_lu(sys);
+      Eigen::VectorXd R2;
+      if (symmetric_newton) {
+        if (!symmetric_assembled_) sys.assemble(X, Linearization::newton_symmetric, S_, R2);
+        symmetric_assembled_ = false;  // factorized
+      } else if (!assembled) {
         sys.assemble(X, kind, A_, R2);
         assembled = true;
       }
       rep.assembly_seconds += seconds(t0);
       t0 = clock::now();
-      if constexpr (requires { L.factorize_kept(A_, true); })
-        L.factorize_kept(A_, exact);
+      const Matrix& M = symmetric_newton ? S_ : A_;
+      if constexpr (requires { L.factorize_kept(M, true, true); })
+        L.factorize_kept(M, exact, symmetric_newton || symmetric_matrix(sys, kind));
+      else if constexpr (requires { L.factorize_kept(M, true); })
+        L.factorize_kept(M, exact);
       else
-        L.factorize_kept(A_);
+        L.factorize_kept(M);
       rep.factorization_seconds += seconds(t0);
       ++rep.preconditioner_updates;
       st.made_this_solve = true;
@@ -571,7 +622,8 @@ class NonlinearSolver {
   params prm_;
   Linear linear_;
   Linear picard_linear_;  // holds the kept Picard LU (kept_lu_picard)
-  Matrix A_, P_;
+  Matrix A_, P_, S_;  // S_: newton_symmetric's matrix, for the kept LU
+  bool symmetric_assembled_ = false;  // S_ is at this iteration's X, not yet factorized
   Eigen::VectorXd Jv_, Av_, Xtry_, Rtry_;
   Eigen::MatrixXd product_part_;  // column_product's storage
   long analyzed_generation_ = -1;
