@@ -523,6 +523,32 @@ TEST_CASE("GMRES: exact preconditioner, stagnation without and with the direct f
     CHECK(g.direct_fallbacks() == 0);
     CHECK((x - x_exact).norm() <= 1e-11 * x_exact.norm());
   }
+  // A converged cycle's residual is the Arnoldi estimate; below 1e-10 a
+  // product confirms it (the estimate can drop under the rounding floor).
+  SECTION("reported residual: estimate, confirmed below 1e-10") {
+    Eigen::SparseMatrix<double> P = A;
+    P.diagonal() *= 1.05;  // an inexact preconditioner: several iterations
+    for (const double tol : {1e-8, 1e-12}) {
+      GmresParams prm;
+      prm.tol = tol;
+      GmresSolver<> g(prm);
+      g.set_layout(DofLayout{n, {}});
+      g.factorize_kept(P, true);
+      int products = 0;
+      const Eigen::VectorXd x = g.solve_kept(
+          [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+            ++products;
+            return A * v;
+          },
+          b, 100);
+      const double true_residual = (b - A * x).norm() / b.norm();
+      CHECK(g.converged());
+      CHECK(g.last_iterations() >= 3);
+      CHECK(true_residual <= 1.01 * tol);
+      CHECK(g.last_residual() == Approx(true_residual).epsilon(1e-3));
+      CHECK(products == g.last_iterations() + (tol < 1e-10 ? 1 : 0));
+    }
+  }
   SECTION("P = diag(A), short restart") {
     GmresParams prm;
     prm.tol = 1e-10;
