@@ -55,4 +55,49 @@ inline std::ostream& operator<<(std::ostream& os, const LoadSteadiness& s) {
   return os << buf;
 }
 
+/// Where the tools' power goes over the same window (StepRecord::power and
+/// tool_power): the plastic dissipation's and the stabilization's shares of
+/// it, the rest being the gap closure's, friction's and the prescribed
+/// velocities'; and how steady the plastic part alone is (load_steadiness
+/// of plastic / speed): a load whose noise is the plastic part's comes from
+/// the flow, not from how the multipliers sum to a force.
+struct PowerShares {
+  int samples = 0;
+  double plastic = 0, stabilization = 0;           ///< mean shares of the tools' power
+  double stabilization_low = 0, stabilization_high = 0;
+  LoadSteadiness plastic_load;                     ///< of plastic / speed
+};
+
+template <class Record>
+PowerShares power_shares(const std::vector<const Record*>& steps, double speed) {
+  PowerShares s;
+  s.samples = static_cast<int>(steps.size());
+  if (steps.empty()) return s;
+  std::vector<double> plastic_load;
+  s.stabilization_low = 1e300;
+  s.stabilization_high = -1e300;
+  for (const Record* r : steps) {
+    const double sp = r->power.volumetric / r->tool_power;
+    s.plastic += r->power.plastic / r->tool_power / s.samples;
+    s.stabilization += sp / s.samples;
+    s.stabilization_low = std::min(s.stabilization_low, sp);
+    s.stabilization_high = std::max(s.stabilization_high, sp);
+    plastic_load.push_back(r->power.plastic / speed);
+  }
+  s.plastic_load = load_steadiness(plastic_load);
+  return s;
+}
+
+/// "plastic a %, stabilization b % (c-d %); plastic part alone: step-to-step change e % rms".
+inline std::ostream& operator<<(std::ostream& os, const PowerShares& s) {
+  char buf[224];
+  std::snprintf(buf, sizeof buf,
+                "plastic %.2f %%, stabilization %.2f %% (%.2f-%.2f %%), the rest %.2f %%; the plastic part "
+                "alone: band %+.2f / %+.2f %%, step-to-step change %.2f %% rms",
+                100 * s.plastic, 100 * s.stabilization, 100 * s.stabilization_low, 100 * s.stabilization_high,
+                100 * (1 - s.plastic - s.stabilization), 100 * s.plastic_load.low, 100 * s.plastic_load.high,
+                100 * s.plastic_load.rms_change);
+  return os << buf;
+}
+
 }  // namespace maxentflow::examples

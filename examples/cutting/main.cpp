@@ -234,8 +234,10 @@ int main(int argc, char** argv) {
     const int n_steps = static_cast<int>(hist.size());
     const int from = n_steps - std::max(1, static_cast<int>(0.3 * n_steps));
     std::vector<double> fc_last;
+    std::vector<const StepRecord*> window;
     double ft_mean = 0;
     for (int k = from; k < n_steps; ++k) {
+      window.push_back(&hist[static_cast<std::size_t>(k)]);
       fc_last.push_back(hist[static_cast<std::size_t>(k)].tool_force[0].x());
       ft_mean += hist[static_cast<std::size_t>(k)].tool_force[0].y();
     }
@@ -269,6 +271,8 @@ int main(int argc, char** argv) {
               << " (Merchant: t0, " << phi_merchant << " deg); Fc / Merchant's k t0 (cot phi + tan(phi - rake)) "
               << fc_mean / fc_merchant << " (k " << k_shear << " at the shear zone's mean strain rate "
               << d_shear << ")\n";
+    if (window.size() > 1)
+      std::cout << "  tool power (Fc x V) over the same steps: " << examples::power_shares(window, o.s.V) << "\n";
     std::cout << "results in " << dir << " (step.pvd: open in ParaView)\n";
     if (!o.no_plots) {
       std::ostringstream args;

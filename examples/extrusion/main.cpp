@@ -423,12 +423,16 @@ int main(int argc, char** argv) {
     // The load a press reads: the ram force against the ram's motion.
     const Eigen::Vector2d ram_dir = sim.tools()[0].velocity().normalized();
     std::vector<double> ram_load;
+    std::vector<const StepRecord*> window;
     for (const auto& r : sim.history()) {
       total += r.seconds;
-      if (r.tool_stroke[0] >= o.load_window[0] && r.tool_stroke[0] <= o.load_window[1])
+      if (r.tool_stroke[0] >= o.load_window[0] && r.tool_stroke[0] <= o.load_window[1]) {
         ram_load.push_back(-r.tool_force[0].dot(ram_dir));
+        window.push_back(&r);
+      }
     }
     const examples::LoadSteadiness load = examples::load_steadiness(ram_load);
+    const examples::PowerShares power = examples::power_shares(window, sim.tools()[0].velocity().norm());
     std::cout << "extrusion: " << o.steps << " steps, " << sim.nodes().cols() << " nodes, " << total << " s\n"
               << "  max area change " << 100 * m.max_area_change << " %, min gap " << m.min_gap
               << " h, product width " << w.width << " (die opening " << s.opening() << ", " << 100 * w.error
@@ -441,6 +445,8 @@ int main(int argc, char** argv) {
               << "  ram load over the stroke " << o.load_window[0] << "-" << o.load_window[1] << ": "
               << (load.samples > 1 ? detail::cat(load) : std::string("fewer than two steps in the window"))
               << "\n"
+              << "  ram power (load x speed) over the same strokes: "
+              << (power.samples > 1 ? detail::cat(power) : std::string("fewer than two steps in the window")) << "\n"
               << "  friction: " << o.friction.describe() << "\n"
               << "results in " << dir << " (step.pvd: open in ParaView)\n";
 

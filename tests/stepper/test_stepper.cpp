@@ -569,6 +569,23 @@ TEST_CASE("results: VTU, PVD and CSV files parse and are whole after every step"
       ++rows;
     }
     CHECK(rows == 2 * k);  // two tools per step
+    // power.csv: one row per step, the step's record (V2: the plates' power is the plastic dissipation).
+    std::istringstream power(slurp(dir / "power.csv"));
+    std::getline(power, line);
+    CHECK(line == "step,time,tool_power,delivered_power,plastic_power,stabilization_power");
+    rows = 0;
+    while (std::getline(power, line)) {
+      std::vector<double> c;
+      std::istringstream cells(line);
+      for (std::string cell; std::getline(cells, cell, ',');) c.push_back(std::stod(cell));
+      REQUIRE(c.size() == 6);
+      const StepRecord& r = s.history()[static_cast<std::size_t>(rows)];
+      CHECK(c[0] == r.step);
+      CHECK(c[2] == Approx(r.tool_power).epsilon(1e-15));
+      CHECK(c[4] == Approx(c[2]).epsilon(1e-9));
+      ++rows;
+    }
+    CHECK(rows == k);
     for (const auto& e : fs::directory_iterator(dir))
       CHECK(e.path().filename().string().find(".tmp.") == std::string::npos);
   }
@@ -1141,6 +1158,41 @@ TEST_CASE("contact fields on the nodes: the pressure integrates to the press for
     REQUIRE(top_nodes >= 7);
     CHECK(F == Approx(rec.tool_force[1].y()).epsilon(1e-9));
   }
+}
+
+TEST_CASE("power balance: the press delivers the dissipation; friction's and the stabilization's shares",
+          "[stepper][contact][friction]") {
+  // V1 / V2: the homogeneous flow dissipates 2 mu D:D = 3 mu e^2 and nothing
+  // else (div v = 0, grad p = 0); the top plate's load times its speed is all of it.
+  for (const Geometry g : {Geometry::axisymmetric, Geometry::plane_strain}) {
+    CAPTURE(g == Geometry::axisymmetric);
+    StepperParams prm;
+    prm.geometry = g;
+    prm.dt = 1.0;
+    const double R0 = 10, H0 = 12, V = 0.06;
+    const NortonHoff mat(150.0, 0.2, 1e-8);
+    Stepper<NortonHoff> s(block_nodes(7, 8, R0, H0, false), mat, prm);
+    add_plates(s, H0, V);
+    for (int k = 0; k < 4; ++k) {
+      const StepRecord& r = s.step();
+      CAPTURE(k, r.power.plastic, r.power.volumetric, r.power.constraints, r.tool_power);
+      CHECK(r.tool_power == Approx(r.tool_force[1].y() * V).epsilon(1e-14));
+      CHECK(r.power.constraints == Approx(r.tool_power).epsilon(1e-12));
+      CHECK(r.power.tractions == 0.0);
+      CHECK(r.power.plastic == Approx(r.tool_power).epsilon(1e-9));
+      CHECK(std::abs(r.power.volumetric) <= 1e-9 * r.power.plastic);
+    }
+  }
+  // A block pressed by a plate with Coulomb friction: the load's power is the
+  // plastic, the friction and the stabilization's dissipation (the flow is
+  // not homogeneous: grad p != 0).
+  const StepRecord r = press_block(Coulomb(0.1, 1e-3)).rec;
+  CAPTURE(r.power.plastic, r.power.volumetric, r.power.constraints, r.power.tractions, r.tool_power);
+  CHECK(r.power.constraints == Approx(r.tool_power).epsilon(1e-12));
+  CHECK(r.power.delivered() == Approx(r.power.dissipated()).epsilon(1e-8));
+  CHECK(-r.power.tractions > 0.01 * r.tool_power);  // friction dissipates
+  CHECK(r.power.volumetric > 1e-4 * r.power.plastic);
+  CHECK(r.power.volumetric < 0.05 * r.power.plastic);
 }
 
 TEST_CASE("step control is a policy: a controller that never retries fails at the first attempt",

@@ -25,6 +25,20 @@
 
 namespace maxentflow {
 
+/// FlowSystem::power_balance: Eq. (21) times the solution. The material's
+/// dissipation int 2 mu D:D (`plastic`) and -int p div v (`volumetric`,
+/// which the mass rows make int tau |grad p|^2: what the pressure-gradient
+/// stabilization dissipates, zero in the continuum) against the power the
+/// boundary delivers: -sum Lambda_i rhs_i over the multiplier rows
+/// (`constraints`: tools, prescribed velocities and the contact's gap
+/// closure -g/dt) and int t . v over the tractions (`tractions`, friction
+/// included). A tool's load times its speed is its share of `constraints`.
+struct PowerBalance {
+  double plastic = 0.0, volumetric = 0.0, constraints = 0.0, tractions = 0.0;
+  double delivered() const { return constraints + tractions; }
+  double dissipated() const { return plastic + volumetric; }
+};
+
 /// X = [v_x, v_y, P per node (3N) | Lambda (one per constraint row)].
 template <ViscosityLaw Material>
 class FlowSystem {
@@ -319,6 +333,27 @@ class FlowSystem {
     Eigen::VectorXd R = Eigen::VectorXd::Zero(DofLayout::fields_of(number_of_nodes()));
     assembler_.assemble(X, Linearization::picard, pattern_, nullptr, R, nullptr, &s);
     return s;
+  }
+
+  /// The power balance of X: Eq. (21) times X. At a solution (no body
+  /// force) the power delivered through the boundary equals the dissipation,
+  /// `plastic + volumetric`, to the solver's tolerance (PowerBalance).
+  PowerBalance power_balance(const Eigen::VectorXd& X) const {
+    PowerBalance b;
+    const FlowPointState st = point_state(X);
+    for (Eigen::Index g = 0; g < st.d.size(); ++g) {
+      const double w = disc_->weight(static_cast<int>(g));
+      b.plastic += w * 3.0 * st.mu[g] * st.d[g] * st.d[g];  // 2 mu D:D, d^2 = (2/3) D:D
+      b.volumetric -= w * st.p[g] * st.div[g];
+    }
+    const int nv = DofLayout::fields_of(number_of_nodes());
+    const auto& rows = constraints_.rows();
+    for (std::size_t i = 0; i < rows.size(); ++i) b.constraints -= X[nv + static_cast<Eigen::Index>(i)] * rows[i].rhs;
+    b.tractions = traction_.dot(X.head(nv));
+    for_each_traction_point(X, [&](const VelocityTractionTerm&, const TractionGauss& g) {
+      b.tractions += g.w * g.vt.t.dot(g.state.v);
+    });
+    return b;
   }
 
   /// Force the workpiece exerts on a constraint part.

@@ -1,5 +1,6 @@
 // maxentflow: what a forming run leaves on disk: a VTU per output step with a
-// PVD time series (ParaView), forces.csv, tools.csv (tool outlines for plots).
+// PVD time series (ParaView), forces.csv, power.csv (the power balance),
+// tools.csv (tool outlines for plots).
 // Every file is written whole (temporary file + rename).
 #pragma once
 
@@ -21,6 +22,7 @@ class ResultsWriter {
   explicit ResultsWriter(std::filesystem::path dir, std::string prefix = "step")
       : dir_(std::move(dir)), prefix_(std::move(prefix)), pvd_(dir_ / (prefix_ + ".pvd")),
         forces_({"step", "time", "tool", "stroke", "fx", "fy"}),
+        power_({"step", "time", "tool_power", "delivered_power", "plastic_power", "stabilization_power"}),
         tools_({"step", "tool", "x", "y"}) {
     std::filesystem::create_directories(dir_);
   }
@@ -39,6 +41,12 @@ class ResultsWriter {
       forces_.end_row();
     }
     forces_.write(dir_ / "forces.csv");
+    // What the tools deliver, what the whole boundary delivers, and where it
+    // goes (StepRecord::power): a check of the loads, and the stabilization's
+    // share of them.
+    power_.cell(r.step).cell(t0).cell(r.tool_power).cell(r.power.delivered());
+    power_.cell(r.power.plastic).cell(r.power.volumetric).end_row();
+    power_.write(dir_ / "power.csv");
     if (!vtu) return;
     char name[64];
     std::snprintf(name, sizeof name, "%s_%04d.vtu", prefix_.c_str(), r.step);
@@ -84,11 +92,13 @@ class ResultsWriter {
   void save(CheckpointOut& out) const {
     pvd_.save(out);
     forces_.save(out);
+    power_.save(out);
     tools_.save(out);
   }
   void load(CheckpointIn& in) {
     pvd_.load(in);
     forces_.load(in);
+    power_.load(in);
     tools_.load(in);
   }
 
@@ -96,7 +106,7 @@ class ResultsWriter {
   std::filesystem::path dir_;
   std::string prefix_;
   PvdCollection pvd_;
-  CsvTable forces_, tools_;
+  CsvTable forces_, power_, tools_;
 };
 
 }  // namespace maxentflow

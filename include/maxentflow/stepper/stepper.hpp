@@ -140,6 +140,11 @@ struct StepRecord {
   int nodes_added = 0, nodes_removed = 0;   ///< by the rezoning before the step
   std::vector<Eigen::Vector2d> tool_force;  ///< force on each tool, configuration at the step start
   std::vector<double> tool_stroke;          ///< each tool's travel at the step start
+  /// The solve's power balance (FlowSystem::power_balance), and the power the
+  /// tools deliver, -sum_k f_k . v_k: the loads' work rate, which differs from
+  /// power.constraints by the prescribed velocities' and the gap closure's.
+  PowerBalance power;
+  double tool_power = 0.0;
   double seconds = 0.0, mesh_seconds = 0.0, basis_seconds = 0.0, solve_seconds = 0.0,
          post_seconds = 0.0;
   /// Parts of solve_seconds: assembly (A, R, preconditioner), factorization, linear solves.
@@ -418,6 +423,7 @@ class Stepper {
     Eigen::Matrix2Xd f(2, static_cast<Eigen::Index>(r.tool_force.size()));
     for (std::size_t k = 0; k < r.tool_force.size(); ++k) f.col(static_cast<Eigen::Index>(k)) = r.tool_force[k];
     out.put(f).put(Eigen::Map<const Eigen::VectorXd>(r.tool_stroke.data(), static_cast<Eigen::Index>(r.tool_stroke.size())));
+    out.put(r.power.plastic).put(r.power.volumetric).put(r.power.constraints).put(r.power.tractions).put(r.tool_power);
     out.put(r.seconds).put(r.mesh_seconds).put(r.basis_seconds).put(r.solve_seconds).put(r.post_seconds);
     out.put(r.assembly_seconds).put(r.factorization_seconds).put(r.linear_seconds);
     out.put(r.note).put(r.predictor_fallbacks).put(r.nodal_gradient_fallback).put(r.degraded);
@@ -437,6 +443,8 @@ class Stepper {
       r.tool_force.emplace_back(f(0, k), f(1, k));
       r.tool_stroke.push_back(stroke(k));
     }
+    for (double* d : {&r.power.plastic, &r.power.volumetric, &r.power.constraints, &r.power.tractions, &r.tool_power})
+      *d = in.get_double();
     for (double* d : {&r.seconds, &r.mesh_seconds, &r.basis_seconds, &r.solve_seconds, &r.post_seconds,
                       &r.assembly_seconds, &r.factorization_seconds, &r.linear_seconds})
       *d = in.get_double();
@@ -590,6 +598,10 @@ class Stepper {
   void record_loads(const FlowSystem<Material>& sys, const Eigen::VectorXd& X, StepRecord& rec) {
     rec.tool_force = contact_.reactions(sys, X);
     rec.tool_stroke = contact_.strokes();
+    rec.power = sys.power_balance(X);
+    rec.tool_power = 0.0;
+    for (std::size_t k = 0; k < rec.tool_force.size(); ++k)
+      rec.tool_power -= rec.tool_force[k].dot(contact_.tools()[k].velocity());
     rec.contact_nodes = contact_.flags(contact_flag_);
   }
 
