@@ -12,6 +12,7 @@ exact curve if given. Profiles: a two-column CSV (position, value) as a line,
 like the paper's Fig. 7 (name.csv -> name.png). Mesh: the node cloud with its
 integration mesh (alpha-shape) at a step. Cutting: Fc and Ft against time
 (cutting_forces.csv) and the chip thickness against the cut length (chip.csv).
+Power: where the tools' power goes (power.csv), whenever the run wrote it.
 """
 import argparse
 import csv
@@ -127,6 +128,35 @@ def plot_force(directory, tool, exact):
     plt.close(fig)
 
 
+def plot_power(directory):
+    """power.csv: the tools' power against time and where it goes (plastic and
+    stabilization dissipation), with the stabilization's share below."""
+    path = os.path.join(directory, "power.csv")
+    if not os.path.exists(path):
+        return
+    rows = read_csv(path)
+    if not rows:
+        return
+    t = [float(r["time"]) for r in rows]
+    tool = [float(r["tool_power"]) for r in rows]
+    plastic = [float(r["plastic_power"]) for r in rows]
+    stab = [float(r["stabilization_power"]) for r in rows]
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(6.4, 5.6), sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+    ax.plot(t, tool, "o-", ms=3, label="tools (load x speed)")
+    ax.plot(t, plastic, "-", label="plastic dissipation")
+    ax.plot(t, stab, "-", label="stabilization's dissipation")
+    ax.set_ylabel("power")
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    ax2.plot(t, [100 * s / p if p else 0.0 for s, p in zip(stab, tool)], "-")
+    ax2.set_xlabel("time")
+    ax2.set_ylabel("stabilization / tools, %")
+    ax2.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, "power.png"), dpi=130)
+    plt.close(fig)
+
+
 PROFILE_TITLES = {"profile_axis_step1": "pressure along the axis y = 0, step 1",
                   "profile_die_step1": "pressure along the die face plane x = L, step 1"}
 
@@ -220,6 +250,7 @@ def main():
         plot_mesh(a.directory, a.prefix, step)
     if a.cutting:
         plot_cutting(a.directory)
+    plot_power(a.directory)
 
 
 if __name__ == "__main__":
