@@ -4,6 +4,11 @@
 
 #include <maxentflow/maxentflow.hpp>
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <vector>
+
 namespace maxentflow::examples {
 
 struct Setup {
@@ -27,6 +32,14 @@ struct Setup {
   /// billet next to the ram about 4:1 along the ram face.
   bool rezone = true;
   double rezone_min = 0.35, rezone_max = 2.5;
+  /// An Eulerian zone (eulerian_zone.hpp) from `zone_from` along the billet
+  /// to the land's end: the container's end and the die land keep their nodes
+  /// in place once the material fills them, so that the flow through the die
+  /// is solved on the same cloud every step, with no rezoning there
+  /// (docs/method.md, section 11). A square die only; zone_from must stay
+  /// ahead of the ram (the example puts it two spacings ahead of the
+  /// stroke's end). NaN: no zone (the default).
+  double zone_from = std::numeric_limits<double>::quiet_NaN();
   Predictor predictor = Predictor::spatial;  ///< steady flow through the die
   NodeUpdate node_update = StepperParams{}.node_update;
   AnyContactLaw law = Frictionless{};  ///< on the ram and the die
@@ -64,6 +77,67 @@ inline Eigen::Matrix2Xd graded_billet(const Setup& s) {
   return x;
 }
 
+/// Where the example's Eulerian zone (--zone) starts: two spacings ahead of
+/// the ram's position after `steps` steps; NaN where that leaves less than
+/// two spacings before the die face, or the die corner is rounded.
+inline double default_zone_from(const Setup& s, int steps) {
+  const double h = s.length / (s.nx - 1), from = steps * s.dt * s.V + 2 * h;
+  return s.die_radius == 0.0 && from <= s.length - 2 * h ? from : std::numeric_limits<double>::quiet_NaN();
+}
+
+// Billet coordinates (along, across) of a model point (to_model's inverse).
+inline Eigen::Vector2d to_billet(const Setup& s, const Eigen::Vector2d& m) {
+  return s.axisymmetric ? Eigen::Vector2d(s.length - m.y(), m.x()) : m;
+}
+
+/// The Eulerian zone of Setup::zone_from (model coordinates): the billet's
+/// nodes from zone_from on, the die corner, and the land's nodes: the graded
+/// billet's grid continued past the die face (the same radial map, so the
+/// spacing at the corner is h / grade on both sides), a node on the land's
+/// face in each column, and a column on the land's end, where the product
+/// leaves the zone.
+inline EulerianZone extrusion_zone(const Setup& s) {
+  require(s.die_radius == 0.0, "an Eulerian zone needs a square die (--die-radius 0)", "extrusion_zone");
+  const double L = s.length, H = s.height, a = s.opening(), end = L + s.land;
+  const double hx = L / (s.nx - 1), hy = H / (s.ny - 1);
+  require(std::isfinite(s.zone_from) && s.zone_from > 0 && s.zone_from <= L - 2 * hx,
+          detail::cat("the zone's start (", s.zone_from, ") must lie in (0, length - 2 h]"), "extrusion_zone");
+  const Eigen::Vector2d c(L, a);
+  const double R = std::min({a, H - a, L});
+  const double g = s.grade;
+  auto graded = [&](const Eigen::Vector2d& p) {
+    const double u = (p - c).norm() / R;
+    const double q = u / g + (1.0 - 1.0 / g) * (2.0 * u * u - u * u * u);
+    return u < 1.0 && u > 0.0 ? Eigen::Vector2d(c + (p - c) * (q / u)) : p;
+  };
+  std::vector<Eigen::Vector2d> z;
+  const Eigen::Matrix2Xd billet = graded_billet(s);
+  for (Eigen::Index k = 0; k < billet.cols(); ++k)
+    if (billet(0, k) >= s.zone_from) z.push_back(billet.col(k));
+  z.push_back(c);
+  // Short of the land's end by half their own spacing at least.
+  auto before_end = [&](const Eigen::Vector2d& p) {
+    const Eigen::Vector2d q = graded(p);
+    return q.x() <= end - 0.5 * (graded(p + Eigen::Vector2d(hx, 0)) - q).norm();
+  };
+  // Rows evenly from the axis to the land's face (about hy apart).
+  const int rows = std::max(1, static_cast<int>(std::lround(a / hy)));
+  for (int i = 1; L + i * hx < end + s.land; ++i)
+    for (int j = 0; j <= rows; ++j)
+      if (before_end({L + i * hx, a * j / rows})) z.push_back(graded({L + i * hx, a * j / rows}));
+  for (int j = 0; j <= rows; ++j) z.push_back({end, a * j / rows});
+  EulerianZone zone;
+  zone.nodes.resize(2, static_cast<Eigen::Index>(z.size()));
+  for (std::size_t k = 0; k < z.size(); ++k) zone.nodes.col(static_cast<Eigen::Index>(k)) = to_model(s, z[k]);
+  const double tol = 1e-9 * L;
+  zone.inside = [s, tol, a, end](const Eigen::Vector2d& m) {
+    const Eigen::Vector2d p = to_billet(s, m);
+    return p.x() >= s.zone_from - tol && p.y() >= -tol &&
+           ((p.x() <= s.length + tol && p.y() <= s.height + tol) || (p.x() <= end + tol && p.y() <= a + tol));
+  };
+  return zone;
+}
+
 /// Linear: the stepper's linear-solver policy (GmresSolver<> by default).
 template <LinearSolverPolicy Linear = GmresSolver<>>
 Stepper<NortonHoff, Linear> make_simulation(const Setup& s) {
@@ -89,6 +163,7 @@ Stepper<NortonHoff, Linear> make_simulation(const Setup& s) {
   prm.adapt.enabled = s.rezone;
   prm.adapt.min_ratio = s.rezone_min;
   prm.adapt.max_ratio = s.rezone_max;
+  const bool zone = std::isfinite(s.zone_from);
   // Axisymmetric: x = (r, z), the axis r = 0. The die helper keeps the axis on
   // the right of the extrusion direction, so the bar is extruded along -z: the
   // billet point (along, across) sits at (r, z) = (across, L - along).
@@ -106,6 +181,7 @@ Stepper<NortonHoff, Linear> make_simulation(const Setup& s) {
                s.law);
   const Eigen::Vector2d across = s.axisymmetric ? Eigen::Vector2d(1, 0) : Eigen::Vector2d(0, 1);
   sim.add_velocity_condition({"axis", on_line({0, 0}, across, 1e-9 * H), across, 0.0});
+  if (zone) sim.set_eulerian_zone(extrusion_zone(s));
   return sim;
 }
 

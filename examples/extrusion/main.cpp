@@ -16,6 +16,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -176,6 +177,9 @@ struct Options {
   bool no_plots = false, check = false, verbose = false;
   double area_tol = 0.03;
   double surface_tol = 0.25;  // in h, the uniform grid's spacing
+  bool zone = false;
+  double load_rms_tol = std::numeric_limits<double>::infinity();  // not checked unless given
+  double zone_from = std::numeric_limits<double>::quiet_NaN();
   int steps = 100, vtu_every = 10;
   std::string out = "results/extrusion", node_update = "ab2";
   std::vector<int> convergence;
@@ -215,6 +219,11 @@ void add_options(CLI::App& app, Setup& s, Options& o) {
       ->check(CLI::Range(0.05, 0.9));
   app.add_option("--rezone-max", s.rezone_max, "Rezoning: split an edge longer than this * h0")
       ->check(CLI::Range(1.2, 10.0));
+  app.add_flag("--zone", o.zone,
+               "An Eulerian zone at the die (square die): the container's end and the land keep their nodes in "
+               "place once the material fills them, from 2 h ahead of the ram's last position (eulerian_zone.hpp)");
+  app.add_option("--zone-from", o.zone_from, "Where the Eulerian zone starts along the billet (with --zone)")
+      ->check(CLI::PositiveNumber);
   app.add_option("--vtu-every", o.vtu_every, "Write a VTU every this many steps (and at steps 1, 10, last)")
       ->check(CLI::Range(1, 100000));
   app.add_option("--out-dir", o.out, "Results folder");
@@ -225,11 +234,16 @@ void add_options(CLI::App& app, Setup& s, Options& o) {
   app.add_flag("--check", o.check,
                "Exit 1 unless: no penetration, area change < --area-tol, product width within 5 % of the "
                "die opening, its free surface within --surface-tol of the opening's line, step-1 axis pressure "
-               "decreasing, die-face pressure peaking next to the die corner");
+               "decreasing, die-face pressure peaking next to the die corner, the ram load steady to "
+               "--load-rms-tol over --load-window where given");
   app.add_option("--area-tol", o.area_tol, "Largest area (volume) change --check accepts")->check(CLI::PositiveNumber);
   app.add_option("--surface-tol", o.surface_tol,
                  "Largest distance (in h = length / (nx - 1)) --check accepts between a node of the product's free "
                  "surface, from the land's end to 3 h before the nose, and the opening's line")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--load-rms-tol", o.load_rms_tol,
+                 "Largest step-to-step change of the ram load (rms, relative to its mean) over --load-window "
+                 "that --check accepts (not checked unless given)")
       ->check(CLI::PositiveNumber);
   app.add_option("--load-window", o.load_window,
                  "Ram strokes (from,to) over which the ram load's steadiness is reported")
@@ -246,6 +260,7 @@ struct RunMeasures {
   Profiles first;               // step-1 pressure profiles
   double max_area_change = 0;  // relative to the billet's
   double min_gap = 0;          // most negative tool gap after a move, in h
+  double zone_min_gap = 0;     // the same for the Eulerian zone's nodes, which are put back
 };
 
 // The steps, each recorded; on a failed step the configuration it failed
@@ -260,6 +275,7 @@ RunMeasures run(const Setup& s, const Options& o, const std::string& signature, 
     examples::RestartOptions::resume(dir, signature, sim, results, o.steps, "extrusion", [&](CheckpointIn& in) {
       m.max_area_change = in.get_double();
       m.min_gap = in.get_double();
+      m.zone_min_gap = in.get_double();
       m.first.xs = in.get_matrix();
       m.first.p_axis = in.get_matrix();
       m.first.ys = in.get_matrix();
@@ -286,13 +302,21 @@ RunMeasures run(const Setup& s, const Options& o, const std::string& signature, 
     }
     // Mass: the area (volume) inside the alpha-shape boundary.
     m.max_area_change = std::max(m.max_area_change, std::abs(material_measure(s, sim.mesh()) - area0) / area0);
-    // Penetration after the move, relative to the nodal spacing.
-    for (int a : sim.mesh().boundary_nodes())
-      for (const auto& tool : sim.tools())
-        m.min_gap = std::min(m.min_gap, tool.gap(sim.nodes().col(a)) / sim.mesh().h()(a));
+    // Penetration after the move, relative to the nodal spacing; a node of
+    // the Eulerian zone that is still inside it (or in a tool) goes back to
+    // its place before the next step, so its gap is reported on its own.
+    const auto& zone = sim.eulerian_zone();
+    for (int a : sim.mesh().boundary_nodes()) {
+      const Eigen::Vector2d p = sim.nodes().col(a);
+      const bool put_back = zone && sim.nodal_field("zone_node")(0, a) > 0 &&
+                            (zone->inside(p) || std::any_of(sim.tools().begin(), sim.tools().end(),
+                                                            [&](const RigidTool& t) { return t.gap(p) < 0; }));
+      double& gap = put_back ? m.zone_min_gap : m.min_gap;
+      for (const auto& tool : sim.tools()) gap = std::min(gap, tool.gap(p) / sim.mesh().h()(a));
+    }
     if (o.restart.due(k, vtu))
       write_checkpoint(dir, signature, sim, results, [&](CheckpointOut& out) {
-        out.put(m.max_area_change).put(m.min_gap).put(m.first.xs).put(m.first.p_axis).put(m.first.ys).put(m.first.p_die);
+        out.put(m.max_area_change).put(m.min_gap).put(m.zone_min_gap).put(m.first.xs).put(m.first.p_axis).put(m.first.ys).put(m.first.p_die);
       });
   }
   return m;
@@ -406,7 +430,16 @@ int main(int argc, char** argv) {
     if (!o.convergence.empty()) return convergence(s, o.convergence, dir, o.check);
     // 2. The case (extrusion_case.hpp): billet nodes, the ram and the die as
     //    rigid tools (frictionless unless a friction option is given), v_y = 0
-    //    on the axis, rezoning.
+    //    on the axis, rezoning, and with --zone an Eulerian zone at the die.
+    if (!std::isnan(o.zone_from) && !o.zone) throw Error("--zone-from needs --zone", "extrusion");
+    if (o.zone && s.die_radius != 0.0) throw Error("--zone needs a square die (--die-radius 0)", "extrusion");
+    if (o.zone) {
+      s.zone_from = std::isnan(o.zone_from) ? default_zone_from(s, o.steps) : o.zone_from;
+      if (!std::isnan(o.zone_from) && o.zone_from > s.length - 2 * s.length / (s.nx - 1))
+        throw Error("--zone-from must lie at least 2 h before the die face", "extrusion");
+      if (std::isnan(s.zone_from))
+        throw Error("--zone: the ram's stroke leaves no room for the zone before the die face", "extrusion");
+    }
     Stepper<NortonHoff> sim = make_simulation(s);
     sim.set_log(&std::cout);
     if (o.verbose) sim.parameters().solver.log = &std::cout;
@@ -434,8 +467,11 @@ int main(int argc, char** argv) {
     const examples::LoadSteadiness load = examples::load_steadiness(ram_load);
     const examples::PowerShares power = examples::power_shares(window, sim.tools()[0].velocity().norm());
     std::cout << "extrusion: " << o.steps << " steps, " << sim.nodes().cols() << " nodes, " << total << " s\n"
-              << "  max area change " << 100 * m.max_area_change << " %, min gap " << m.min_gap
-              << " h, product width " << w.width << " (die opening " << s.opening() << ", " << 100 * w.error
+              << "  max area change " << 100 * m.max_area_change << " %, min gap " << m.min_gap << " h"
+              << (sim.eulerian_zone() ? detail::cat(" (the Eulerian zone's nodes, before they are put back: ",
+                                                     m.zone_min_gap, " h; zone from ", s.zone_from, ")")
+                                      : std::string())
+              << ", product width " << w.width << " (die opening " << s.opening() << ", " << 100 * w.error
               << " %; top node at " << w.top << ", " << w.nodes << " nodes)\n"
               << "  free surface from the land's end to 3 h before the nose: farthest boundary node "
               << w.surface_dev << " h from the opening's line (at " << w.surface_x << ")\n"
@@ -463,7 +499,10 @@ int main(int argc, char** argv) {
 
     // 6. --check: exit 1 when a physical check fails.
     if (o.check) {
-      const auto failed = failed_checks(s, o, m, w, f);
+      auto failed = failed_checks(s, o, m, w, f);
+      if (load.samples > 1 && !(load.rms_change <= o.load_rms_tol))
+        failed.push_back(detail::cat("the ram load changes from step to step by ", 100 * load.rms_change,
+                                     " % rms over the load window, more than --load-rms-tol"));
       for (const auto& msg : failed) std::cerr << "check failed: " << msg << "\n";
       if (!failed.empty()) return 1;
     }

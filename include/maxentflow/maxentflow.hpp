@@ -29,6 +29,7 @@
 #include <maxentflow/contact/contact.hpp>
 #include <maxentflow/contact/contact_set.hpp>
 #include <maxentflow/stepper/node_adaptivity.hpp>
+#include <maxentflow/stepper/eulerian_zone.hpp>
 #include <maxentflow/stepper/nodal_fields.hpp>
 #include <maxentflow/stepper/stepper.hpp>
 #include <maxentflow/stepper/results_writer.hpp>

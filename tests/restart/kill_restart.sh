@@ -53,7 +53,9 @@ echo "killed after step ${last}"
 # Refused: a damaged checkpoint, a checkpoint of another case.
 cp -r "$work/run" "$work/damaged"
 size=$(stat -c %s "$work/damaged/checkpoint.mxf")
-printf '\x5a' | dd of="$work/damaged/checkpoint.mxf" bs=1 seek=$((size / 2)) conv=notrunc status=none
+# The middle byte inverted (a fixed byte could be the one already there).
+byte=$(od -An -tu1 -j $((size / 2)) -N 1 "$work/damaged/checkpoint.mxf" | tr -d ' ')
+printf "\\x$(printf %02x $((255 - byte)))" | dd of="$work/damaged/checkpoint.mxf" bs=1 seek=$((size / 2)) conv=notrunc status=none
 "${exe[@]}" --restart "$work/damaged" >"$work/damaged.log" 2>&1 && fail "a damaged checkpoint was accepted"
 grep -q "checksum mismatch" "$work/damaged.log" || fail "damaged checkpoint: $(tail -2 "$work/damaged.log")"
 cp -r "$work/run" "$work/other"

@@ -714,6 +714,129 @@ TEST_CASE("rezoning: a node on a convex tool corner next to the boundary, once",
   CHECK(a.added() == 2);
 }
 
+namespace {
+// A zone of the block [0, 10] x [0, 4] (11 x 5 nodes, h = 1): x in [3, 6].
+EulerianZone strip_zone(double emit_spacing) {
+  EulerianZone z;
+  z.inside = [](const Eigen::Vector2d& p) { return p.x() >= 3 - 1e-12 && p.x() <= 6 + 1e-12; };
+  z.nodes.resize(2, 20);
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 5; ++j) z.nodes.col(5 * i + j) << 3 + i, j;
+  z.emit_spacing = emit_spacing;
+  return z;
+}
+}  // namespace
+
+TEST_CASE("Eulerian zone: nodes back in place with the interpolant, outflow at its spacing, not before filled",
+          "[stepper][zone]") {
+  // The block moved by 0.4 along x (a step of flow): its zone nodes at 3.4,
+  // 4.4, 5.4 are inside, those from 6 are at 6.4, out of the zone, with the
+  // material's column at 7.4 one spacing beyond.
+  Eigen::Matrix2Xd x = block_nodes(11, 5, 10, 4, false);
+  Eigen::VectorXd id = Eigen::VectorXd::Zero(x.cols());
+  for (Eigen::Index a = 0; a < x.cols(); ++a) {
+    const double c = x(0, a);
+    if (c >= 3 && c <= 6) id(a) = 5 * (c - 3) + x(1, a) + 1;  // the zone node it was, plus one
+    x(0, a) += 0.4;
+  }
+  const IntegrationMesh<> mesh(x);
+  const Eigen::VectorXd h0 = Eigen::VectorXd::Ones(x.cols());
+  const MaxEntBasis<2> basis(x, mesh.h());
+  const auto admissible = [](const Eigen::Vector2d& p) { return p.y() <= 3.5; };  // a "tool" above y = 3.5
+  const ZoneUpdate z = plan_zone_update(mesh, basis, strip_zone(0.8), id, h0, Eigen::VectorXd::Ones(20), admissible);
+  REQUIRE(z.active);
+  // Gone: the 15 old nodes inside (3.4, 4.4, 5.4) and the zone node at (6.4, 4), in the "tool".
+  CHECK(z.change.removed.size() == 16);
+  CHECK(z.emitted.size() == 4);
+  for (int a : z.emitted) CHECK(x(0, a) == Approx(6.4));
+  CHECK(z.fallbacks == 0);
+  // The zone's nodes come back in order; a linear field's data is exact there.
+  REQUIRE(z.change.added() == 20);
+  Eigen::RowVectorXd f(x.cols());
+  for (Eigen::Index a = 0; a < x.cols(); ++a) f(a) = 1 + 2 * x(0, a) - 3 * x(1, a);
+  const Eigen::RowVectorXd g = z.change.transfer(f);
+  const Eigen::Index kept = x.cols() - 16;
+  for (int t = 0; t < 20; ++t) {
+    const Eigen::Vector2d p = z.change.positions(x).col(kept + t);
+    CHECK((p - strip_zone(0.8).nodes.col(t)).norm() == 0.0);
+    CHECK(g(kept + t) == Approx(1 + 2 * p.x() - 3 * p.y()).margin(1e-10));
+  }
+  // A wider emit spacing: the column at 6.4 crowds the material at 7.4 and goes.
+  const ZoneUpdate wide = plan_zone_update(mesh, basis, strip_zone(1.2), id, h0, Eigen::VectorXd::Ones(20));
+  CHECK(wide.emitted.empty());
+  CHECK(wide.change.removed.size() == 20);
+  // Not filled (a zone node beyond the material): nothing changes.
+  EulerianZone beyond = strip_zone(0.8);
+  beyond.inside = [](const Eigen::Vector2d& p) { return p.x() >= 3 - 1e-12 && p.x() <= 12; };
+  beyond.nodes(0, 19) = 11.0;
+  const ZoneUpdate none = plan_zone_update(mesh, basis, beyond, id, h0, Eigen::VectorXd::Ones(20));
+  CHECK_FALSE(none.active);
+  CHECK(none.change.empty());
+  CHECK(in_material(mesh, Eigen::Vector2d(10.4, 2), 1e-9));
+  CHECK_FALSE(in_material(mesh, Eigen::Vector2d(10.5, 2), 1e-3));
+  // A zone node outside its own region is refused with the node's place.
+  EulerianZone bad = strip_zone(0.8);
+  bad.nodes(0, 3) = 7.0;
+  CHECK_THROWS_WITH(bad.validate("test"), Catch::Contains("node 3 at (7, 3) lies outside the zone"));
+}
+
+TEST_CASE("V1 with an Eulerian zone: compression stays exact as the material flows through the zone",
+          "[verification][stepper][zone]") {
+  // The homogeneous field is linear, so the max-ent solution is exact on any
+  // cloud: with a zone in the middle of the block whose nodes come back to
+  // their places every step (the material flowing in from the top, out at
+  // the sides and the bottom), the plate force stays exact and the block a
+  // rectangle.
+  const double W0 = 10, H0 = 12, V = 0.6, dt = 1.0;
+  const NortonHoff mat(150.0, 0.2, 1e-8);
+  StepperParams prm;
+  prm.dt = dt;
+  prm.predictor = Predictor::material;
+  prm.node_update = NodeUpdate::euler;
+  prm.adapt.enabled = true;
+  Stepper<NortonHoff> s(block_nodes(7, 8, W0, H0, false), mat, prm);
+  add_plates(s, H0, V);
+  EulerianZone zone;
+  zone.inside = [](const Eigen::Vector2d& p) { return p.x() >= 2 && p.x() <= 6 && p.y() >= 2 && p.y() <= 6; };
+  zone.nodes.resize(2, 16);
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) zone.nodes.col(4 * i + j) << 2 + 4.0 * i / 3, 2 + 4.0 * j / 3;
+  s.set_eulerian_zone(zone);
+  CHECK_THROWS_WITH(s.set_eulerian_zone(zone), Catch::Contains("has an Eulerian zone already"));
+  double W = W0, H = H0, max_force_error = 0;
+  int emitted = 0, in_place = 0;
+  for (int k = 0; k < 8; ++k) {
+    const double e = V / H, mu = mat.viscosity(2 * e / std::sqrt(3.0)).mu, F = 4 * mu * e * W;
+    const Eigen::Index before = s.nodes().cols();
+    const auto& rec = s.step();
+    max_force_error = std::max({max_force_error, std::abs(rec.tool_force[1].y() - F) / F,
+                                std::abs(rec.tool_force[0].y() + F) / F});
+    // From the second step on every zone node is where the zone put it.
+    int found = 0;
+    for (Eigen::Index t = 0; t < zone.nodes.cols(); ++t)
+      for (Eigen::Index a = 0; a < s.nodes_solved().cols(); ++a)
+        if ((s.nodes_solved().col(a) - zone.nodes.col(t)).norm() == 0.0) {
+          ++found;
+          break;
+        }
+    if (k > 0 && found == 16) ++in_place;
+    emitted += std::max<int>(0, static_cast<int>(rec.nodes - before + rec.nodes_removed - rec.nodes_added));
+    W *= 1 + e * dt;
+    H -= V * dt;
+    // The block stays a rectangle W x H.
+    CHECK(s.nodes().row(0).maxCoeff() == Approx(W).epsilon(1e-8));
+    CHECK(s.nodes().row(1).maxCoeff() == Approx(H).epsilon(1e-8));
+    CHECK(s.nodes().row(0).minCoeff() == Approx(0).margin(1e-8));
+  }
+  CHECK(max_force_error < 1e-8);
+  CHECK(in_place == 7);
+  // The zone's nodes are put back, not added: the count stays that of the block.
+  CHECK(s.nodes().cols() >= 56 - 8);
+  CHECK(s.nodes().cols() <= 56 + 16);
+  CHECK(s.nodal_field("zone_node").maxCoeff() == 16);
+  (void)emitted;
+}
+
 TEST_CASE("V1 with rezoning: plane-strain compression to half height stays exact as nodes come and go",
           "[verification][stepper][rezoning]") {
   // The homogeneous field is linear, so the max-ent solution is exact on any

@@ -72,7 +72,8 @@ class ToolContact {
 
   /// Projects every boundary node onto the tool; active: within the gap
   /// tolerance, or predicted to penetrate during dt with the velocity guess
-  /// v_guess (2 x N, e.g. the previous step's nodal velocity; may be empty),
+  /// v_guess (2 x N, e.g. the previous step's nodal velocity; may be empty;
+  /// a NaN column: no guess for that node, its gap alone decides),
   /// unless at a tool corner and predicted to leave it (params::leave_tol).
   void detect(const Mesh& mesh, const RigidTool& tool, const Eigen::Matrix2Xd& v_guess, double dt) {
     points_.clear();
@@ -86,7 +87,9 @@ class ToolContact {
       c.projection = tool.closest(x.col(a));
       const double g = c.projection.gap;
       double g_end = g;
-      if (v_guess.cols() == x.cols()) g_end = predicted_gap(tool, x.col(a), v_guess.col(a), dt);
+      if (v_guess.cols() == x.cols() && !v_guess.col(a).hasNaN())
+        g_end = predicted_gap(tool, x.col(a), v_guess.col(a), dt);
+      c.put_back = v_guess.cols() == x.cols() && v_guess.col(a).hasNaN();
       c.active = g <= prm_.gap_tol * h(a) || g_end < 0.0;
       // A node far from the tool (beyond a few h) cannot be reached in one step.
       if (c.projection.distance > 10.0 * h(a) && g > 0) c.active = false;
@@ -253,8 +256,11 @@ class ToolContact {
           j = forward ? points_[k].next : points_[k].prev;
         }
       }
-      if (edge)
+      if (edge) {
         for (std::size_t k : run) release[k] = 1;
+      } else if (points_[i].put_back) {
+        release[i] = 1;  // an Eulerian zone's node: no penetration builds up
+      }
     }
     for (std::size_t i = 0; i < points_.size(); ++i) {
       ContactPoint& c = points_[i];
@@ -265,7 +271,7 @@ class ToolContact {
           ++changes;
           changed_.push_back(c.node);
         }
-      } else {
+      } else if (!(c.put_back && c.releases > 0)) {
         const double g_end = predicted_gap(tool, x.col(c.node), v.col(c.node), dt);
         if (g_end < -(c.releases > 0 ? prm_.reentry_tol : prm_.gap_tol) * c.h) {
           c.active = true;

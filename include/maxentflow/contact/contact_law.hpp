@@ -26,6 +26,10 @@ struct ContactPoint {
   double h = 0.0;  ///< nodal spacing, the scale of the gap tolerances
   bool active = false;
   int releases = 0;  ///< times the active set released it this step (at most once)
+  /// An Eulerian zone's node, put back in place before the next step: released
+  /// when tensile even inside a contact zone, and not taken back in this step
+  /// (its penetration does not build up).
+  bool put_back = false;
   int prev = -1, next = -1;  ///< neighbouring boundary nodes (indices into points())
   /// At a concave tool corner (ToolContact::params::corner_tol): the normal
   /// of the corner's second face, which gets a condition of its own.

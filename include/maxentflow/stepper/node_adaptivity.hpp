@@ -35,6 +35,7 @@
 #include <numeric>
 #include <string>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -61,6 +62,10 @@ struct NodeAdaptation {
   std::vector<int> removed;                  ///< old indices, ascending
   std::vector<std::array<int, 2>> parents;   ///< ends (old indices) of each split edge
   Eigen::Matrix2Xd inserted;                 ///< positions of the new nodes
+  /// Where a new node's data is not its parents' mean: old nodes and weights
+  /// (e.g. the old cloud's basis at its position, an EulerianZone's node).
+  /// Empty, or one list per new node (an empty list: the parents' mean).
+  std::vector<std::vector<std::pair<int, double>>> weights;
 
   bool empty() const { return removed.empty() && parents.empty(); }
   int added() const { return static_cast<int>(parents.size()); }
@@ -86,8 +91,13 @@ struct NodeAdaptation {
     for (Eigen::Index a = 0; a < f.cols(); ++a)
       if (map[static_cast<std::size_t>(a)] >= 0) g.col(map[static_cast<std::size_t>(a)]) = f.col(a);
     for (int i = 0; i < added(); ++i) {
-      const auto& p = parents[static_cast<std::size_t>(i)];
-      g.col(kept + i) = (f.col(p[0]) + f.col(p[1])) / 2;
+      const auto k = static_cast<std::size_t>(i);
+      if (k < weights.size() && !weights[k].empty()) {
+        g.col(kept + i).setZero();
+        for (const auto& [a, w] : weights[k]) g.col(kept + i) += w * f.col(a);
+      } else {
+        g.col(kept + i) = (f.col(parents[k][0]) + f.col(parents[k][1])) / 2;
+      }
     }
     return g;
   }

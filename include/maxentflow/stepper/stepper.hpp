@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <ostream>
@@ -29,6 +30,7 @@
 #include <maxentflow/material/norton_hoff.hpp>
 #include <maxentflow/mesh/integration_mesh.hpp>
 #include <maxentflow/solver/nonlinear_solver.hpp>
+#include <maxentflow/stepper/eulerian_zone.hpp>
 #include <maxentflow/stepper/nodal_fields.hpp>
 #include <maxentflow/stepper/node_adaptivity.hpp>
 
@@ -226,6 +228,21 @@ class Stepper {
     return contact_.add_tool(std::move(tool), std::move(law), prm_.contact);
   }
   void add_velocity_condition(VelocityCondition c) { conditions_.push_back(std::move(c)); }
+  /// Makes a region fixed to the tools Eulerian (eulerian_zone.hpp): once
+  /// the material fills it, its nodes are put back at the zone's nodes at
+  /// the start of every step. Before the first step; the nodes carry which
+  /// zone node they are in the nodal field "zone_node" (checkpointed).
+  void set_eulerian_zone(EulerianZone zone) {
+    require(step_ == 0, "an Eulerian zone is set before the first step", "Stepper::set_eulerian_zone");
+    require(!zone_, "the stepper has an Eulerian zone already", "Stepper::set_eulerian_zone");
+    zone.validate("Stepper::set_eulerian_zone");
+    Mesh m(prm_.mesh);
+    m.build(zone.nodes);
+    zone_h0_ = m.h();
+    zone_ = std::move(zone);
+    k_.zone = fields_.add("zone_node", 1, false);
+  }
+  const std::optional<EulerianZone>& eulerian_zone() const { return zone_; }
   void set_log(std::ostream* log) { log_ = log; }
 
   const StepperParams& parameters() const { return prm_; }
@@ -286,7 +303,7 @@ class Stepper {
     StepRecord rec;
     rec.step = step_ + 1;
     rec.dt = prm_.dt;
-    if (prm_.adapt.enabled && h0_set_) rezone(rec);
+    if ((prm_.adapt.enabled || zone_) && h0_set_) rezone(rec);
     rec.nodes = static_cast<int>(x_.cols());
     const State saved = save();
     std::string failures;
@@ -535,7 +552,17 @@ class Stepper {
                              Eigen::VectorXd& X, Eigen::Matrix2Xd& v) {
     // sys.constraints() (non-const) marks the system's structure for an
     // update: asked for anew wherever the rows change.
-    contact_.begin(sys.constraints(), *cfg.mesh, fields_[k_.velocity], dt);
+    if (zone_) {
+      // A zone node's last velocity is that of the material point that left
+      // its place: it starts by its gap alone, the same way every step; a NaN
+      // guess also marks it put back (ContactPoint::put_back).
+      Eigen::Matrix2Xd guess = fields_[k_.velocity];
+      for (Eigen::Index a = 0; a < guess.cols(); ++a)
+        if (fields_.flat(k_.zone)(a) > 0) guess.col(a).setConstant(std::numeric_limits<double>::quiet_NaN());
+      contact_.begin(sys.constraints(), *cfg.mesh, guess, dt);
+    } else {
+      contact_.begin(sys.constraints(), *cfg.mesh, fields_[k_.velocity], dt);
+    }
     const ConstraintSet& cs = std::as_const(sys).constraints();
     const int N = static_cast<int>(x_.cols());
     // One solver for the whole run: its linear policy keeps factorizations
@@ -770,8 +797,10 @@ class Stepper {
       *log_ << "note (step " << step_ + 1 << "; logged once per run, counted in each StepRecord): " << what << '\n';
     logged_degradation_[static_cast<std::size_t>(kind)] = true;
   }
-  // Rezones the cloud x_ (NodeAdaptation) and carries every per-node array
-  // to the new numbering; the next solve starts from the transferred fields.
+  // Rezones the cloud x_: the Eulerian zone's nodes back at their places,
+  // then the node rezoning outside the zone (NodeAdaptation); every per-node
+  // array follows to the new numbering, the next solve starts from the
+  // transferred fields.
   void rezone(StepRecord& rec) {
     const auto t = clock::now();
     Mesh mesh(prm_.mesh);
@@ -782,19 +811,76 @@ class Stepper {
     if (!contact_.tools().empty())
       mesh.set_solid({}, [this](const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return contact_.crossed(a, b); });
     mesh.build(x_);
-    const auto admissible = [this](const Eigen::Vector2d& p) { return contact_.admissible(p); };
-    NodeAdaptation a = plan_node_adaptation(mesh, fields_.flat(k_.h0), prm_.adapt, admissible);
-    if (prm_.adapt.corner_nodes)
-      add_corner_nodes(mesh, fields_.flat(k_.h0), prm_.adapt, contact_.convex_corners(), a);
+    bool zone_active = false;
+    if (zone_ && zone_filled(mesh, *zone_, zone_h0_)) {
+      typename Basis::params bp;
+      bp.gamma = prm_.gamma;
+      bp.tol0 = prm_.tol0;
+      const Basis old(x_, mesh.h(), bp);
+      ZoneUpdate z = plan_zone_update(mesh, old, *zone_, fields_.flat(k_.zone), fields_.flat(k_.h0), zone_h0_,
+                                      [this](const Eigen::Vector2d& p) { return contact_.admissible(p); });
+      zone_active = z.active;
+      if (z.active && !zone_logged_ && log_) {
+        *log_ << "note (step " << step_ + 1 << "): the material fills the Eulerian zone; its " << zone_->nodes.cols()
+              << " nodes stay in place from now on\n";
+        zone_logged_ = true;
+      }
+      if (z.active) {
+        if (z.fallbacks > 0)
+          degrade(rec, 2, detail::cat("Eulerian zone: ", z.fallbacks,
+                                      " zone nodes took the nearest node's data (the old cloud's basis failed there)"));
+        for (int a : z.emitted) fields_.flat(k_.zone)(a) = 0.0;  // the material's now
+        apply(z.change);
+        // Counted as the node count's change: the zone's nodes come back every step.
+        const Eigen::Index T = zone_->nodes.cols();
+        const auto removed = static_cast<Eigen::Index>(z.change.removed.size());
+        rec.nodes_added += static_cast<int>(std::max<Eigen::Index>(0, T - removed));
+        rec.nodes_removed += static_cast<int>(std::max<Eigen::Index>(0, removed - T));
+        fields_.flat(k_.h0).tail(T) = zone_h0_;
+        for (Eigen::Index k = 0; k < T; ++k) fields_.flat(k_.zone)(x_.cols() - T + k) = static_cast<double>(k + 1);
+        if (prm_.adapt.enabled) mesh.build(x_);
+      }
+    }
+    if (prm_.adapt.enabled) {
+      const auto admissible = [this](const Eigen::Vector2d& p) { return contact_.admissible(p); };
+      NodeAdaptation a = plan_node_adaptation(mesh, fields_.flat(k_.h0), prm_.adapt, admissible);
+      if (prm_.adapt.corner_nodes)
+        add_corner_nodes(mesh, fields_.flat(k_.h0), prm_.adapt, contact_.convex_corners(), a);
+      if (zone_active) outside_zone(a);
+      if (!a.empty()) {
+        apply(a);
+        rec.nodes_added += a.added();
+        rec.nodes_removed += static_cast<int>(a.removed.size());
+        if (zone_) fields_.flat(k_.zone).tail(a.added()).setZero();  // new nodes are material nodes
+      }
+    }
     rec.mesh_seconds += since(t);
-    if (a.empty()) return;
+  }
+  // Drops from a rezoning what touches the zone: removals of zone nodes,
+  // insertions inside the zone.
+  void outside_zone(NodeAdaptation& a) const {
+    std::erase_if(a.removed, [&](int r) { return fields_.flat(k_.zone)(r) > 0; });
+    NodeAdaptation kept;
+    kept.removed = std::move(a.removed);
+    std::vector<Eigen::Vector2d> at;
+    for (int i = 0; i < a.added(); ++i) {
+      const auto k = static_cast<std::size_t>(i);
+      if (zone_->inside(a.inserted.col(i))) continue;
+      kept.parents.push_back(a.parents[k]);
+      kept.weights.push_back(k < a.weights.size() ? a.weights[k] : std::vector<std::pair<int, double>>{});
+      at.push_back(a.inserted.col(i));
+    }
+    kept.inserted.resize(2, static_cast<Eigen::Index>(at.size()));
+    for (std::size_t i = 0; i < at.size(); ++i) kept.inserted.col(static_cast<Eigen::Index>(i)) = at[i];
+    a = std::move(kept);
+  }
+  // Carries the cloud and every per-node array through a rezoning.
+  void apply(const NodeAdaptation& a) {
     const std::vector<int> map = a.old_to_new(x_.cols());
     x_ = a.positions(x_);
     fields_.transfer(a);
     contact_flag_.assign(static_cast<std::size_t>(x_.cols()), 0);
     contact_.renumber(map);
-    rec.nodes_added = a.added();
-    rec.nodes_removed = static_cast<int>(a.removed.size());
   }
   double mesh_h_scale(int a) const { return mesh_ ? mesh_->h()(a) : 1.0; }
 
@@ -811,7 +897,11 @@ class Stepper {
   struct {
     int coef, coef_last, velocity, velocity_last, pressure, strain_rate, strain, h0;
     int contact_pressure, friction_stress, slip;
+    int zone = -1;  // with an Eulerian zone: the zone node a node is, plus one (0: a material node)
   } k_{};
+  std::optional<EulerianZone> zone_;
+  Eigen::VectorXd zone_h0_;  // the zone nodes' spacing (their own cloud's h_a)
+  bool zone_logged_ = false;
   double dt_last_ = 0.0;  // the step of coefficients_last -> coefficients
   double ab_ratio_ = 0.0;  // this step's dt / the last one's (0: no last velocity)
   bool h0_set_ = false;
@@ -823,7 +913,7 @@ class Stepper {
   std::shared_ptr<Basis> basis_;
   std::unique_ptr<NonlinearSolver<Linear>> solver_;  // heap: LU factorizations do not move
   std::ostream* log_ = nullptr;
-  std::array<bool, 2> logged_degradation_{};  // gradient fallback, predictor fallback
+  std::array<bool, 3> logged_degradation_{};  // gradient fallback, predictor fallback, zone data fallback
   double time_ = 0.0;
   int step_ = 0;
 };
