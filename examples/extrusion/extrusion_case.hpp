@@ -60,20 +60,20 @@ inline Eigen::Vector2d to_model(const Setup& s, const Eigen::Vector2d& q) {
 /// the uniform grid. Near c the map scales both directions alike (cells stay
 /// near square); the flow's singular point is where the step-1 pressure
 /// converges slowest (docs/method.md, section 9).
+inline Eigen::Vector2d graded(const Setup& s, const Eigen::Vector2d& p) {
+  const Eigen::Vector2d c(s.length, s.opening());
+  const double R = std::min({s.opening(), s.height - s.opening(), s.length});
+  const double g = s.grade, u = (p - c).norm() / R;
+  const double q = u / g + (1.0 - 1.0 / g) * (2.0 * u * u - u * u * u);
+  return u < 1.0 && u > 0.0 ? Eigen::Vector2d(c + (p - c) * (q / u)) : p;
+}
 inline Eigen::Matrix2Xd graded_billet(const Setup& s) {
   require(std::isfinite(s.grade) && s.grade >= 1.0, detail::cat("grade must be >= 1, got ", s.grade),
           "graded_billet");
   Eigen::Matrix2Xd x(2, s.nx * s.ny);
-  const Eigen::Vector2d c(s.length, s.opening());
-  const double R = std::min({s.opening(), s.height - s.opening(), s.length});
-  const double g = s.grade;
   for (int j = 0; j < s.ny; ++j)
-    for (int i = 0; i < s.nx; ++i) {
-      const Eigen::Vector2d p(s.length * i / (s.nx - 1), s.height * j / (s.ny - 1));
-      const double u = (p - c).norm() / R;
-      const double q = u / g + (1.0 - 1.0 / g) * (2.0 * u * u - u * u * u);
-      x.col(j * s.nx + i) = u < 1.0 && u > 0.0 ? Eigen::Vector2d(c + (p - c) * (q / u)) : p;
-    }
+    for (int i = 0; i < s.nx; ++i)
+      x.col(j * s.nx + i) = graded(s, {s.length * i / (s.nx - 1), s.height * j / (s.ny - 1)});
   return x;
 }
 
@@ -103,13 +103,6 @@ inline EulerianZone extrusion_zone(const Setup& s) {
   require(std::isfinite(s.zone_from) && s.zone_from > 0 && s.zone_from <= L - 2 * hx,
           detail::cat("the zone's start (", s.zone_from, ") must lie in (0, length - 2 h]"), "extrusion_zone");
   const Eigen::Vector2d c(L, a);
-  const double R = std::min({a, H - a, L});
-  const double g = s.grade;
-  auto graded = [&](const Eigen::Vector2d& p) {
-    const double u = (p - c).norm() / R;
-    const double q = u / g + (1.0 - 1.0 / g) * (2.0 * u * u - u * u * u);
-    return u < 1.0 && u > 0.0 ? Eigen::Vector2d(c + (p - c) * (q / u)) : p;
-  };
   std::vector<Eigen::Vector2d> z;
   const Eigen::Matrix2Xd billet = graded_billet(s);
   for (Eigen::Index k = 0; k < billet.cols(); ++k)
@@ -117,14 +110,14 @@ inline EulerianZone extrusion_zone(const Setup& s) {
   z.push_back(c);
   // Short of the land's end by half their own spacing at least.
   auto before_end = [&](const Eigen::Vector2d& p) {
-    const Eigen::Vector2d q = graded(p);
-    return q.x() <= end - 0.5 * (graded(p + Eigen::Vector2d(hx, 0)) - q).norm();
+    const Eigen::Vector2d q = graded(s, p);
+    return q.x() <= end - 0.5 * (graded(s, p + Eigen::Vector2d(hx, 0)) - q).norm();
   };
   // Rows evenly from the axis to the land's face (about hy apart).
   const int rows = std::max(1, static_cast<int>(std::lround(a / hy)));
   for (int i = 1; L + i * hx < end + s.land; ++i)
     for (int j = 0; j <= rows; ++j)
-      if (before_end({L + i * hx, a * j / rows})) z.push_back(graded({L + i * hx, a * j / rows}));
+      if (before_end({L + i * hx, a * j / rows})) z.push_back(graded(s, {L + i * hx, a * j / rows}));
   for (int j = 0; j <= rows; ++j) z.push_back({end, a * j / rows});
   EulerianZone zone;
   zone.nodes.resize(2, static_cast<Eigen::Index>(z.size()));

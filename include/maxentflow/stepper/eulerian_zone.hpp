@@ -153,23 +153,20 @@ ZoneUpdate plan_zone_update(const Mesh& mesh, const Basis& basis, const Eulerian
   out.change.weights.resize(static_cast<std::size_t>(T));
   for (Eigen::Index t = 0; t < T; ++t) {
     const Eigen::Vector2d p = zone.nodes.col(t);
-    int nearest = 0;
-    double d2 = std::numeric_limits<double>::infinity();
-    for (Eigen::Index a = 0; a < n; ++a)
-      if ((x.col(a) - p).squaredNorm() < d2) {
-        d2 = (x.col(a) - p).squaredNorm();
-        nearest = static_cast<int>(a);
-      }
     const auto k = static_cast<std::size_t>(t);
-    out.change.parents[k] = {nearest, nearest};
     try {
       const auto v = basis.evaluate(p, false);
       for (std::size_t j = 0; j < v.node.size(); ++j)
         if (v.p[j] != 0.0) out.change.weights[k].emplace_back(v.node[j], v.p[j]);
+      const auto top = std::max_element(v.p.begin(), v.p.end()) - v.p.begin();
+      out.change.parents[k] = {v.node[static_cast<std::size_t>(top)], v.node[static_cast<std::size_t>(top)]};
     } catch (const Error&) {
       // Counted and reported by the caller: the nearest node's data instead.
       out.change.weights[k].clear();
       ++out.fallbacks;
+      Eigen::Index nearest = 0;
+      (x.colwise() - p).colwise().squaredNorm().minCoeff(&nearest);
+      out.change.parents[k] = {static_cast<int>(nearest), static_cast<int>(nearest)};
     }
   }
   return out;
