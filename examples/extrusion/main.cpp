@@ -177,7 +177,7 @@ struct Options {
   bool no_plots = false, check = false, verbose = false;
   double area_tol = 0.03;
   double surface_tol = 0.25;  // in h, the uniform grid's spacing
-  bool zone = false;
+  bool zone = false, no_zone = false;
   double load_rms_tol = std::numeric_limits<double>::infinity();  // not checked unless given
   double zone_from = std::numeric_limits<double>::quiet_NaN();
   int steps = 100, vtu_every = 10;
@@ -219,11 +219,17 @@ void add_options(CLI::App& app, Setup& s, Options& o) {
       ->check(CLI::Range(0.05, 0.9));
   app.add_option("--rezone-max", s.rezone_max, "Rezoning: split an edge longer than this * h0")
       ->check(CLI::Range(1.2, 10.0));
-  app.add_flag("--zone", o.zone,
-               "An Eulerian zone at the die (square die): the container's end and the land keep their nodes in "
-               "place once the material fills them, from 2 h ahead of the ram's last position (eulerian_zone.hpp)");
-  app.add_option("--zone-from", o.zone_from, "Where the Eulerian zone starts along the billet (with --zone)")
-      ->check(CLI::PositiveNumber);
+  auto* zone_flag =
+      app.add_flag("--zone", o.zone,
+                   "An Eulerian zone at the die: the container's end and the land keep their nodes in place once "
+                   "the material fills them, from 2 h ahead of the ram's last position (eulerian_zone.hpp). The "
+                   "default for a square die in plane strain where the stroke leaves room for it; here an error "
+                   "where it cannot be set");
+  app.add_flag("--no-zone", o.no_zone, "No Eulerian zone: every node travels with the material (Lagrangian)")
+      ->excludes(zone_flag);
+  app.add_option("--zone-from", o.zone_from, "Where the Eulerian zone starts along the billet")
+      ->check(CLI::PositiveNumber)
+      ->excludes("--no-zone");
   app.add_option("--vtu-every", o.vtu_every, "Write a VTU every this many steps (and at steps 1, 10, last)")
       ->check(CLI::Range(1, 100000));
   app.add_option("--out-dir", o.out, "Results folder");
@@ -431,9 +437,10 @@ int main(int argc, char** argv) {
     // 2. The case (extrusion_case.hpp): billet nodes, the ram and the die as
     //    rigid tools (frictionless unless a friction option is given), v_y = 0
     //    on the axis, rezoning, and with --zone an Eulerian zone at the die.
-    if (!std::isnan(o.zone_from) && !o.zone) throw Error("--zone-from needs --zone", "extrusion");
-    if (o.zone && s.die_radius != 0.0) throw Error("--zone needs a square die (--die-radius 0)", "extrusion");
-    if (o.zone) {
+    // The zone is asked for (--zone, --zone-from), or the default where it applies.
+    const bool asked = o.zone || !std::isnan(o.zone_from);
+    if (asked && s.die_radius != 0.0) throw Error("--zone needs a square die (--die-radius 0)", "extrusion");
+    if (asked || (!o.no_zone && zone_by_default(s) && !std::isnan(default_zone_from(s, o.steps)))) {
       s.zone_from = std::isnan(o.zone_from) ? default_zone_from(s, o.steps) : o.zone_from;
       if (!std::isnan(o.zone_from) && o.zone_from > s.length - 2 * s.length / (s.nx - 1))
         throw Error("--zone-from must lie at least 2 h before the die face", "extrusion");

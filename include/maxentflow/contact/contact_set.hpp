@@ -50,11 +50,18 @@ class ContactSet {
 
   /// A new configuration: one constraint part per tool ("tool <name>"), each
   /// boundary node projected on each tool, the first active set from the gap
-  /// and the velocity guess (2 x N; may be empty).
-  void begin(ConstraintSet& cs, const Mesh& mesh, const Eigen::Matrix2Xd& v_guess, double dt) {
+  /// and the velocity guess (2 x N; may be empty). put_back (one per node,
+  /// or empty): 0 for a material node, else the node is put back at a fixed
+  /// place (ToolContact::detect): 1 + its flag at the end of the last step
+  /// (flags(): 0 free, k + 1 on tool k), or -1 where that is unknown.
+  void begin(ConstraintSet& cs, const Mesh& mesh, const Eigen::Matrix2Xd& v_guess, double dt,
+             const std::vector<int>& put_back = {}) {
+    std::vector<char> mask(put_back.size(), 0);
     for (std::size_t k = 0; k < tools_.size(); ++k) {
+      for (std::size_t a = 0; a < put_back.size(); ++a)
+        mask[a] = put_back[a] == 0 ? 0 : put_back[a] < 0 ? 1 : put_back[a] == static_cast<int>(k) + 2 ? 2 : 3;
       entries_[k].part = cs.add_part("tool " + tools_[k].name());
-      entries_[k].contact.detect(mesh, tools_[k], v_guess, dt);
+      entries_[k].contact.detect(mesh, tools_[k], v_guess, dt, mask);
     }
   }
 

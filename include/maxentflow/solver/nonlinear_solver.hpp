@@ -234,7 +234,7 @@ class NonlinearSolver {
   /// fine: the first Picard iteration is then a Newtonian solve).
   template <NonlinearSystem System>
   SolveReport solve(System& sys, Eigen::VectorXd& X) {
-    return solve(sys, X, false);
+    return solve(sys, X, Start::fresh);
   }
 
   /// Continues the last solve, on the same system and from its result X, to
@@ -244,16 +244,29 @@ class NonlinearSolver {
   /// stepper's contact active set), then finished.
   template <NonlinearSystem System>
   SolveReport resume(System& sys, Eigen::VectorXd& X) {
-    return solve(sys, X, true);
+    return solve(sys, X, Start::resume);
+  }
+
+  /// Solves again on the configuration of the last solve with some
+  /// constraint rows changed (the stepper's next active-set iteration), from
+  /// its result X, as solve() does; the LUs the last solve made count as this
+  /// one's: they are of the same matrices but for those rows, which the kept
+  /// LU takes by its low-rank update. (An LU carried from another
+  /// configuration, the last step's, is not tried first after one failed.)
+  template <NonlinearSystem System>
+  SolveReport resolve(System& sys, Eigen::VectorXd& X) {
+    return solve(sys, X, Start::same_configuration);
   }
 
  private:
+  enum class Start { fresh, same_configuration, resume };
   template <NonlinearSystem System>
-  SolveReport solve(System& sys, Eigen::VectorXd& X, bool resume) {
+  SolveReport solve(System& sys, Eigen::VectorXd& X, Start start) {
     SolveReport rep;
     const int n = sys.size();
+    const bool resume = start == Start::resume;
     fit_start(X, n);
-    if (!resume)
+    if (start == Start::fresh)
       for (auto* k : {&newton_lu_, &picard_lu_}) {
         k->made_this_solve = false;
         if (k->skip_carry > 0) --k->skip_carry;

@@ -241,6 +241,7 @@ class Stepper {
     zone_h0_ = m.h();
     zone_ = std::move(zone);
     k_.zone = fields_.add("zone_node", 1, false);
+    k_.zone_start = fields_.add("zone_start", DofLayout::per_node, false);
   }
   const std::optional<EulerianZone>& eulerian_zone() const { return zone_; }
   void set_log(std::ostream* log) { log_ = log; }
@@ -553,13 +554,14 @@ class Stepper {
     // sys.constraints() (non-const) marks the system's structure for an
     // update: asked for anew wherever the rows change.
     if (zone_) {
-      // A zone node's last velocity is that of the material point that left
-      // its place: it starts by its gap alone, the same way every step; a NaN
-      // guess also marks it put back (ContactPoint::put_back).
-      Eigen::Matrix2Xd guess = fields_[k_.velocity];
-      for (Eigen::Index a = 0; a < guess.cols(); ++a)
-        if (fields_.flat(k_.zone)(a) > 0) guess.col(a).setConstant(std::numeric_limits<double>::quiet_NaN());
-      contact_.begin(sys.constraints(), *cfg.mesh, guess, dt);
+      // Zone nodes put back this step start their contact from their own
+      // state at the end of the last one (ContactSet::begin); their last
+      // velocity is their own last solve's at the same place.
+      std::vector<int> put_back(static_cast<std::size_t>(x_.cols()), 0);
+      for (Eigen::Index a = 0; a < x_.cols(); ++a)
+        if (const auto id = static_cast<std::size_t>(fields_.flat(k_.zone)(a)); id > 0)
+          put_back[static_cast<std::size_t>(a)] = id <= zone_held_.size() && zone_held_[id - 1] >= 0 ? 1 + zone_held_[id - 1] : -1;
+      contact_.begin(sys.constraints(), *cfg.mesh, fields_[k_.velocity], dt, put_back);
     } else {
       contact_.begin(sys.constraints(), *cfg.mesh, fields_[k_.velocity], dt);
     }
@@ -590,7 +592,11 @@ class Stepper {
       for (int pass = loose ? 0 : 1; pass < 2; ++pass) {
         solver_->parameters().velocity_tol = pass == 0 ? prm_.active_set_tol : prm_.solver.velocity_tol;
         solver_->parameters().residual_tol = pass == 0 ? prm_.active_set_tol : prm_.solver.residual_tol;
-        add_report(pass == 0 || !loose ? solver_->solve(sys, X) : solver_->resume(sys, X), rec);
+        // After an active-set change: the same configuration, other rows.
+        if (pass == 1 && loose)
+          add_report(solver_->resume(sys, X), rec);
+        else
+          add_report(as == 0 ? solver_->solve(sys, X) : solver_->resolve(sys, X), rec);
         contact_.remember(cs, X, nf);
         nodal_velocity(cfg.at_nodes, X, v);
         // Free nodes are checked against the tools with the move they will make.
@@ -642,6 +648,7 @@ class Stepper {
     ab_ratio_ = update_ratio(dt);
     dt_last_ = dt;
     fields_.flat(k_.coef) = X.head(DofLayout::fields_of(N));
+    if (zone_) fields_.flat(k_.zone_start) = fields_.flat(k_.coef);  // not moved by the predictor
     fields_[k_.velocity] = v;
     mesh_ = cfg.mesh;
     basis_ = cfg.basis;
@@ -812,6 +819,7 @@ class Stepper {
       mesh.set_solid({}, [this](const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return contact_.crossed(a, b); });
     mesh.build(x_);
     bool zone_active = false;
+    zone_held_.clear();  // known only for a zone put back this step
     if (zone_ && zone_filled(mesh, *zone_, zone_h0_)) {
       typename Basis::params bp;
       bp.gamma = prm_.gamma;
@@ -829,10 +837,35 @@ class Stepper {
         if (z.fallbacks > 0)
           degrade(rec, 2, detail::cat("Eulerian zone: ", z.fallbacks,
                                       " zone nodes took the nearest node's data (the old cloud's basis failed there)"));
+        // A zone node's next solve starts from its own last solution, not the
+        // moved cloud's interpolant: at a fixed place a steady flow changes
+        // little from step to step, and max-ent coefficients are not nodal
+        // values (the interpolant smooths them across the die corner).
+        const Eigen::Index T = zone_->nodes.cols(), n_old = x_.cols();
+        Eigen::Matrix3Xd own = Eigen::Matrix3Xd::Constant(3, T, std::numeric_limits<double>::quiet_NaN());
+        Eigen::Matrix2Xd own_v(2, T);
+        zone_held_.assign(static_cast<std::size_t>(T), -1);
+        // The zone node that comes back is the one that left: its contact
+        // multipliers carry over (where it was not emitted into the material),
+        // and its contact starts from its state at the end of the last step.
+        std::vector<std::pair<int, int>> back;
+        const Eigen::Index first = n_old - static_cast<Eigen::Index>(z.change.removed.size());  // zone node 0's index
+        for (Eigen::Index a = 0; a < n_old; ++a)
+          if (const auto id = static_cast<Eigen::Index>(fields_.flat(k_.zone)(a)); id > 0) {
+            own.col(id - 1) = fields_[k_.zone_start].col(a);
+            own_v.col(id - 1) = fields_[k_.velocity].col(a);
+            zone_held_[static_cast<std::size_t>(id - 1)] = contact_flag_[static_cast<std::size_t>(a)];
+            back.emplace_back(static_cast<int>(a), static_cast<int>(first + id - 1));
+          }
         for (int a : z.emitted) fields_.flat(k_.zone)(a) = 0.0;  // the material's now
-        apply(z.change);
+        apply(z.change, back);
+        auto coef = fields_.flat(k_.coef);
+        for (Eigen::Index k = 0; k < T; ++k)
+          if (own.col(k).allFinite()) {
+            coef.template segment<3>(DofLayout::per_node * (x_.cols() - T + k)) = own.col(k);
+            fields_[k_.velocity].col(x_.cols() - T + k) = own_v.col(k);
+          }
         // Counted as the node count's change: the zone's nodes come back every step.
-        const Eigen::Index T = zone_->nodes.cols();
         const auto removed = static_cast<Eigen::Index>(z.change.removed.size());
         rec.nodes_added += static_cast<int>(std::max<Eigen::Index>(0, T - removed));
         rec.nodes_removed += static_cast<int>(std::max<Eigen::Index>(0, removed - T));
@@ -875,8 +908,12 @@ class Stepper {
     a = std::move(kept);
   }
   // Carries the cloud and every per-node array through a rezoning.
-  void apply(const NodeAdaptation& a) {
-    const std::vector<int> map = a.old_to_new(x_.cols());
+  // `same`: (old, new) pairs of nodes that continue where the plan removed
+  // the old one (a zone node put back).
+  void apply(const NodeAdaptation& a, const std::vector<std::pair<int, int>>& same = {}) {
+    std::vector<int> map = a.old_to_new(x_.cols());
+    for (const auto& [o, n] : same)
+      if (map[static_cast<std::size_t>(o)] < 0) map[static_cast<std::size_t>(o)] = n;
     x_ = a.positions(x_);
     fields_.transfer(a);
     contact_flag_.assign(static_cast<std::size_t>(x_.cols()), 0);
@@ -898,9 +935,11 @@ class Stepper {
     int coef, coef_last, velocity, velocity_last, pressure, strain_rate, strain, h0;
     int contact_pressure, friction_stress, slip;
     int zone = -1;  // with an Eulerian zone: the zone node a node is, plus one (0: a material node)
+    int zone_start = -1;  // with an Eulerian zone: the last solve's coefficients (a zone node's next start)
   } k_{};
   std::optional<EulerianZone> zone_;
   Eigen::VectorXd zone_h0_;  // the zone nodes' spacing (their own cloud's h_a)
+  std::vector<int> zone_held_;  // per zone node: the tool it ended the last step on (contact_flag_), 0: none, -1: unknown
   bool zone_logged_ = false;
   double dt_last_ = 0.0;  // the step of coefficients_last -> coefficients
   double ab_ratio_ = 0.0;  // this step's dt / the last one's (0: no last velocity)
