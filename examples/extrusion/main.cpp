@@ -179,6 +179,7 @@ struct Options {
   double surface_tol = 0.25;  // in h, the uniform grid's spacing
   bool zone = false, no_zone = false;
   double load_rms_tol = std::numeric_limits<double>::infinity();  // not checked unless given
+  double load_band_tol = std::numeric_limits<double>::infinity();  // not checked unless given
   double zone_from = std::numeric_limits<double>::quiet_NaN();
   int steps = 100, vtu_every = 10;
   std::string out = "results/extrusion", node_update = "ab2";
@@ -241,7 +242,7 @@ void add_options(CLI::App& app, Setup& s, Options& o) {
                "Exit 1 unless: no penetration, area change < --area-tol, product width within 5 % of the "
                "die opening, its free surface within --surface-tol of the opening's line, step-1 axis pressure "
                "decreasing, die-face pressure peaking next to the die corner, the ram load steady to "
-               "--load-rms-tol over --load-window where given");
+               "--load-rms-tol and --load-band-tol over --load-window where given");
   app.add_option("--area-tol", o.area_tol, "Largest area (volume) change --check accepts")->check(CLI::PositiveNumber);
   app.add_option("--surface-tol", o.surface_tol,
                  "Largest distance (in h = length / (nx - 1)) --check accepts between a node of the product's free "
@@ -250,6 +251,10 @@ void add_options(CLI::App& app, Setup& s, Options& o) {
   app.add_option("--load-rms-tol", o.load_rms_tol,
                  "Largest step-to-step change of the ram load (rms, relative to its mean) over --load-window "
                  "that --check accepts (not checked unless given)")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--load-band-tol", o.load_band_tol,
+                 "Largest deviation of the ram load from its mean over --load-window (relative) that --check "
+                 "accepts (not checked unless given)")
       ->check(CLI::PositiveNumber);
   app.add_option("--load-window", o.load_window,
                  "Ram strokes (from,to) over which the ram load's steadiness is reported")
@@ -510,6 +515,9 @@ int main(int argc, char** argv) {
       if (load.samples > 1 && !(load.rms_change <= o.load_rms_tol))
         failed.push_back(detail::cat("the ram load changes from step to step by ", 100 * load.rms_change,
                                      " % rms over the load window, more than --load-rms-tol"));
+      if (load.samples > 1 && !(load.band() <= o.load_band_tol))
+        failed.push_back(detail::cat("the ram load strays from its mean by up to ", 100 * load.band(),
+                                     " % over the load window, more than --load-band-tol"));
       for (const auto& msg : failed) std::cerr << "check failed: " << msg << "\n";
       if (!failed.empty()) return 1;
     }
