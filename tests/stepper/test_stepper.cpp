@@ -300,32 +300,31 @@ TEST_CASE("contact: a node at a tool's end that the velocity guess moves off sta
   ToolContact::params keep = prm;
   keep.leave_tol = 1e9;  // the rule off: in contact as its gap says
   CHECK(active(keep, {0.3, -0.3}) == std::make_pair(true, true));
-  // Eulerian zone nodes (put back at fixed places; 1: last state unknown,
-  // 2: held by this tool at the end of the last step, 3: free of it), with
-  // their own last velocity as the guess: one held at the end starts in
-  // contact whatever that velocity says; one that ended free starts free
-  // unless it would penetrate, on the face too.
-  auto zone_node = [&](int a, char mark, const Eigen::Vector2d& move) {
+  // Eulerian zone nodes (put back at fixed places, with their state at the
+  // end of the last step), their own last velocity the guess: one held at
+  // the end starts in contact whatever that velocity says; one that ended
+  // free starts free unless it would penetrate, on the face too.
+  auto zone_node = [&](int a, PutBack mark, const Eigen::Vector2d& move) {
     Eigen::Matrix2Xd v = Eigen::Matrix2Xd::Zero(2, x.cols());
     v.col(a) = move / dt;
-    std::vector<char> put_back(static_cast<std::size_t>(x.cols()), 0);
+    std::vector<PutBack> put_back(static_cast<std::size_t>(x.cols()), PutBack::no);
     put_back[static_cast<std::size_t>(a)] = mark;
     ToolContact c(prm);
     c.detect(mesh, plate, v, dt, put_back);
     const auto it = std::find_if(c.points().begin(), c.points().end(),
                                  [&](const ContactPoint& p) { return p.node == a; });
     REQUIRE(it != c.points().end());
-    CHECK(it->put_back == (mark > 0));
+    CHECK(it->put_back == (mark != PutBack::no));
     return it->active;
   };
   const Eigen::Vector2d off(0.3, -0.3), into(0, 0.3);
-  CHECK_FALSE(zone_node(end, 0, off));
-  CHECK_FALSE(zone_node(end, 1, off));
-  CHECK(zone_node(end, 2, off));
-  CHECK_FALSE(zone_node(end, 3, off));
-  CHECK(zone_node(face, 1, off));  // on the face: by its gap, as a material node
-  CHECK_FALSE(zone_node(face, 3, off));
-  CHECK(zone_node(face, 3, into));
+  CHECK_FALSE(zone_node(end, PutBack::no, off));
+  CHECK_FALSE(zone_node(end, PutBack::unknown, off));
+  CHECK(zone_node(end, PutBack::held, off));
+  CHECK_FALSE(zone_node(end, PutBack::free, off));
+  CHECK(zone_node(face, PutBack::unknown, off));  // on the face: by its gap, as a material node
+  CHECK_FALSE(zone_node(face, PutBack::free, off));
+  CHECK(zone_node(face, PutBack::free, into));
 }
 
 TEST_CASE("contact: a zone opens from its edges, a whole tensile run in one update",

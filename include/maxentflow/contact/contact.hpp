@@ -76,14 +76,13 @@ class ToolContact {
   /// a NaN column: no guess for that node, its gap alone decides),
   /// unless at a tool corner and predicted to leave it (params::leave_tol).
   /// put_back (one per node, or empty) marks nodes put back at fixed places
-  /// (an Eulerian zone's; ContactPoint::put_back), with their state at the
-  /// end of the last step: 1 unknown (as any node); 2 held by this tool (in
-  /// contact also at a tool corner it leaves: its last velocity is a held
-  /// node's); 3 free of it (free unless the guess takes it into the tool,
-  /// also on the face: the state a step's active set ended in, not the gap
-  /// of a node put back on the face).
+  /// (ContactPoint::put_back) with their state at the end of the last step:
+  /// held, in contact also at a tool corner it leaves (its last velocity is a
+  /// held node's); free, free unless the guess takes it into the tool, also
+  /// on the face (the state the last active set ended in, not the gap of a
+  /// node put back on the face).
   void detect(const Mesh& mesh, const RigidTool& tool, const Eigen::Matrix2Xd& v_guess, double dt,
-              const std::vector<char>& put_back = {}) {
+              const std::vector<PutBack>& put_back = {}) {
     points_.clear();
     const auto& x = mesh.nodes();
     const auto& h = mesh.h();
@@ -97,13 +96,14 @@ class ToolContact {
       double g_end = g;
       if (v_guess.cols() == x.cols() && !v_guess.col(a).hasNaN())
         g_end = predicted_gap(tool, x.col(a), v_guess.col(a), dt);
-      c.put_back = static_cast<Eigen::Index>(put_back.size()) == x.cols() && put_back[static_cast<std::size_t>(a)];
+      const PutBack mark =
+          static_cast<Eigen::Index>(put_back.size()) == x.cols() ? put_back[static_cast<std::size_t>(a)] : PutBack::no;
+      c.put_back = mark != PutBack::no;
       c.active = g <= prm_.gap_tol * h(a) || g_end < 0.0;
       // A node far from the tool (beyond a few h) cannot be reached in one step.
       if (c.projection.distance > 10.0 * h(a) && g > 0) c.active = false;
-      const char mark = c.put_back ? put_back[static_cast<std::size_t>(a)] : 0;
-      if (mark == 3) c.active = g_end < -prm_.gap_tol * h(a);
-      if (c.projection.at_corner && g_end > prm_.leave_tol * h(a) && mark != 2) c.active = false;
+      if (mark == PutBack::free) c.active = g_end < -prm_.gap_tol * h(a);
+      if (c.projection.at_corner && g_end > prm_.leave_tol * h(a) && mark != PutBack::held) c.active = false;
       for (const auto& k : corners)
         if ((x.col(a) - k.point).norm() <= prm_.corner_tol * h(a)) {
           // The first face's condition, whichever face is nearer, and the second's.

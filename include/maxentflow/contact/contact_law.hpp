@@ -19,6 +19,15 @@
 
 namespace maxentflow {
 
+/// A node put back at a fixed place before the step (an Eulerian zone's),
+/// with its state against a tool at the end of the last step.
+enum class PutBack : char {
+  no,       ///< a material node
+  unknown,  ///< put back, its last state unknown: as any node
+  held,     ///< put back, held by the tool at the end of the last step
+  free      ///< put back, free of the tool at the end of the last step
+};
+
 /// One boundary node's state against one tool.
 struct ContactPoint {
   int node = -1;

@@ -56,10 +56,13 @@ class ContactSet {
   /// (flags(): 0 free, k + 1 on tool k), or -1 where that is unknown.
   void begin(ConstraintSet& cs, const Mesh& mesh, const Eigen::Matrix2Xd& v_guess, double dt,
              const std::vector<int>& put_back = {}) {
-    std::vector<char> mask(put_back.size(), 0);
+    std::vector<PutBack> mask(put_back.size(), PutBack::no);
     for (std::size_t k = 0; k < tools_.size(); ++k) {
       for (std::size_t a = 0; a < put_back.size(); ++a)
-        mask[a] = put_back[a] == 0 ? 0 : put_back[a] < 0 ? 1 : put_back[a] == static_cast<int>(k) + 2 ? 2 : 3;
+        mask[a] = put_back[a] == 0                         ? PutBack::no
+                  : put_back[a] < 0                        ? PutBack::unknown
+                  : put_back[a] == static_cast<int>(k) + 2 ? PutBack::held
+                                                           : PutBack::free;
       entries_[k].part = cs.add_part("tool " + tools_[k].name());
       entries_[k].contact.detect(mesh, tools_[k], v_guess, dt, mask);
     }
