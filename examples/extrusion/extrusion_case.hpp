@@ -32,6 +32,7 @@ struct Setup {
   /// billet next to the ram about 4:1 along the ram face.
   bool rezone = true;
   double rezone_min = 0.35, rezone_max = 2.5;
+  double rezone_min_spacing = NodeAdaptivityParams{}.min_spacing_ratio;
   /// An Eulerian zone (eulerian_zone.hpp) from `zone_from` along the billet
   /// to the land's end: the container's end and the die land keep their nodes
   /// in place once the material fills them, so that the flow through the die
@@ -163,6 +164,7 @@ Stepper<NortonHoff, Linear> make_simulation(const Setup& s) {
   prm.adapt.enabled = s.rezone;
   prm.adapt.min_ratio = s.rezone_min;
   prm.adapt.max_ratio = s.rezone_max;
+  prm.adapt.min_spacing_ratio = s.rezone_min_spacing;
   const bool zone = std::isfinite(s.zone_from);
   // Axisymmetric: x = (r, z), the axis r = 0. The die helper keeps the axis on
   // the right of the extrusion direction, so the bar is extruded along -z: the

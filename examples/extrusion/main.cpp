@@ -220,6 +220,10 @@ void add_options(CLI::App& app, Setup& s, Options& o) {
       ->check(CLI::Range(0.05, 0.9));
   app.add_option("--rezone-max", s.rezone_max, "Rezoning: split an edge longer than this * h0")
       ->check(CLI::Range(1.2, 10.0));
+  app.add_option("--rezone-min-spacing", s.rezone_min_spacing,
+                 "Rezoning: remove a node on an edge shorter than this * the nodal spacing h_a (a crowded, "
+                 "anisotropic cloud; 0: off)")
+      ->check(CLI::Range(0.0, 0.9));
   auto* zone_flag =
       app.add_flag("--zone", o.zone,
                    "An Eulerian zone at the die: the container's end and the land keep their nodes in place once "
@@ -246,7 +250,7 @@ void add_options(CLI::App& app, Setup& s, Options& o) {
   app.add_option("--area-tol", o.area_tol, "Largest area (volume) change --check accepts")->check(CLI::PositiveNumber);
   app.add_option("--surface-tol", o.surface_tol,
                  "Largest distance (in h = length / (nx - 1)) --check accepts between a node of the product's free "
-                 "surface, from the land's end to 3 h before the nose, and the opening's line")
+                 "surface, from the land's end to 3 h before the nose's front face, and the opening's line")
       ->check(CLI::PositiveNumber);
   app.add_option("--load-rms-tol", o.load_rms_tol,
                  "Largest step-to-step change of the ram load (rms, relative to its mean) over --load-window "
@@ -341,7 +345,7 @@ struct ProductWidth {
   double width = 0, error = 1, top = 0;
   int nodes = 0;
   // The product's free surface between the land's end and 3 h before the
-  // nose: the boundary node farthest from the opening's line (in h0).
+  // nose's front face: the boundary node farthest from the opening's line (in h0).
   double surface_dev = 0, surface_x = 0;
 };
 ProductWidth product_width(const Setup& s, const IntegrationMesh<>& mesh) {
@@ -364,10 +368,18 @@ ProductWidth product_width(const Setup& s, const IntegrationMesh<>& mesh) {
       ++w.nodes;
     }
   }
+  // The free surface ends where the nose's front face begins: its bulge is
+  // a length of the process (about 18 at E2's size), not a few spacings.
+  double top_front = -1e300;
+  for (int a : mesh.boundary_nodes()) {
+    const Eigen::Vector2d q = frame(s, mesh.nodes().col(a));
+    if (q.x() > exit && q.y() >= s.opening() - 0.5 * hmean) top_front = std::max(top_front, q.x());
+  }
+  const double x2_surface = std::min(x2, top_front - 3 * hmean);
   for (int a : mesh.boundary_nodes()) {
     const Eigen::Vector2d q = frame(s, mesh.nodes().col(a));
     const double dev = std::abs(q.y() - s.opening()) / hmean;
-    if (q.x() > exit && q.x() < x2 && q.y() > 0.5 * s.opening() && dev > w.surface_dev) {
+    if (q.x() > exit && q.x() < x2_surface && q.y() > 0.5 * s.opening() && dev > w.surface_dev) {
       w.surface_dev = dev;
       w.surface_x = q.x();
     }
@@ -469,8 +481,10 @@ int main(int argc, char** argv) {
     const Eigen::Vector2d ram_dir = sim.tools()[0].velocity().normalized();
     std::vector<double> ram_load;
     std::vector<const StepRecord*> window;
+    int zone_since = 0;  // the first step with the Eulerian zone in place
     for (const auto& r : sim.history()) {
       total += r.seconds;
+      if (r.zone_active && !zone_since) zone_since = r.step;
       if (r.tool_stroke[0] >= o.load_window[0] && r.tool_stroke[0] <= o.load_window[1]) {
         ram_load.push_back(-r.tool_force[0].dot(ram_dir));
         window.push_back(&r);
@@ -481,11 +495,14 @@ int main(int argc, char** argv) {
     std::cout << "extrusion: " << o.steps << " steps, " << sim.nodes().cols() << " nodes, " << total << " s\n"
               << "  max area change " << 100 * m.max_area_change << " %, min gap " << m.min_gap << " h"
               << (sim.eulerian_zone() ? detail::cat(" (the Eulerian zone's nodes, before they are put back: ",
-                                                     m.zone_min_gap, " h; zone from ", s.zone_from, ")")
+                                                     m.zone_min_gap, " h; zone from ", s.zone_from, ", ",
+                                                     zone_since ? detail::cat("in place from step ", zone_since)
+                                                                : std::string("never filled: the run stayed Lagrangian"),
+                                                     ")")
                                       : std::string())
               << ", product width " << w.width << " (die opening " << s.opening() << ", " << 100 * w.error
               << " %; top node at " << w.top << ", " << w.nodes << " nodes)\n"
-              << "  free surface from the land's end to 3 h before the nose: farthest boundary node "
+              << "  free surface from the land's end to 3 h before the nose's front face: farthest boundary node "
               << w.surface_dev << " h from the opening's line (at " << w.surface_x << ")\n"
               << "  step-1 axis pressure " << m.first.p_axis[0] << " at the ram to "
               << m.first.p_axis[m.first.p_axis.size() - 1] << " at the die; largest rise " << f.rise / f.range

@@ -672,6 +672,50 @@ TEST_CASE("rezoning: a 3:1 stretched, 1:3 compressed grid gets back to its spaci
   CHECK(rmax <= prm.max_ratio);
 }
 
+TEST_CASE("rezoning: a cloud squeezed 6:1 inside the h0 band loses its crowded nodes; area and linear "
+          "fields kept",
+          "[stepper][rezoning]") {
+  // A unit grid (h0 = 1) stretched 2.3:1 along x, squeezed to 0.36 along y:
+  // every edge within [min_ratio, max_ratio] h0, so only the spacing rule acts.
+  Eigen::Matrix2Xd x = block_nodes(13, 49, 12, 48, false);
+  Eigen::VectorXd h0 = Eigen::VectorXd::Ones(x.cols());
+  x.row(0) *= 2.3;
+  x.row(1) *= 0.36;
+  const double W = 12 * 2.3, H = 48 * 0.36;
+  auto linear = [](const Eigen::Vector2d& p) { return 1 - 0.5 * p.x() + 2 * p.y(); };
+  Eigen::RowVectorXd f(x.cols());
+  for (Eigen::Index a = 0; a < x.cols(); ++a) f[a] = linear(x.col(a));
+  NodeAdaptivityParams prm;
+  prm.enabled = true;
+  NodeAdaptivityParams h0_only = prm;
+  h0_only.min_spacing_ratio = 0.0;
+  CHECK(plan_node_adaptation(IntegrationMesh<>(x), h0, h0_only).empty());
+  const Eigen::Index before = x.cols();
+  int passes = 0;
+  for (; passes < 30; ++passes) {
+    const IntegrationMesh<> mesh(x);
+    const NodeAdaptation a = plan_node_adaptation(mesh, h0, prm);
+    if (a.empty()) break;
+    for (int r : a.removed)  // never a corner
+      CHECK_FALSE(((x(0, r) == 0 || x(0, r) == Approx(W)) && (x(1, r) == 0 || x(1, r) == Approx(H))));
+    x = a.positions(x);
+    h0 = a.transfer(h0.transpose()).transpose();
+    f = a.transfer(f);
+  }
+  CHECK(passes < 30);  // it settles (the sides last: a side node's h_a rises as its neighbours go)
+  INFO(before << " -> " << x.cols() << " nodes in " << passes << " passes");
+  CHECK(x.cols() < 0.7 * before);
+  const IntegrationMesh<> mesh(x);
+  CHECK(mesh.total_area() == Approx(W * H).epsilon(1e-12));
+  CHECK(mesh.orphan_nodes().empty());
+  double fmax = 0, smin = 1e300;
+  for (Eigen::Index a = 0; a < x.cols(); ++a) fmax = std::max(fmax, std::abs(f[a] - linear(x.col(a))));
+  for (const auto& e : mesh.edges())
+    smin = std::min(smin, (x.col(e.b) - x.col(e.a)).norm() / (0.5 * (mesh.h()[e.a] + mesh.h()[e.b])));
+  CHECK(fmax < 1e-12);
+  CHECK(smin >= prm.min_spacing_ratio);
+}
+
 TEST_CASE("rezoning: no node is put inside a tool", "[stepper][rezoning]") {
   Eigen::Matrix2Xd x = block_nodes(6, 6, 5, 5, false);
   x.row(0) *= 4.0;  // every horizontal edge is 4 h0
@@ -799,6 +843,19 @@ TEST_CASE("Eulerian zone: nodes back in place with the interpolant, outflow at i
   CHECK(none.change.empty());
   CHECK(in_material(mesh, Eigen::Vector2d(10.4, 2), 1e-9));
   CHECK_FALSE(in_material(mesh, Eigen::Vector2d(10.5, 2), 1e-3));
+  // A material node carried next to a zone node on the zone's edge (0.1
+  // from it, within keep_out) goes with the nodes inside.
+  Eigen::Matrix2Xd y = x;
+  Eigen::Index m = -1;
+  for (Eigen::Index a = 0; a < y.cols(); ++a)
+    if (std::abs(y(0, a) - 2.4) < 1e-12 && y(1, a) == 2.0) m = a;
+  REQUIRE(m >= 0);
+  y(0, m) = 2.9;
+  const IntegrationMesh<> ymesh(y);
+  const MaxEntBasis<2> ybasis(y, ymesh.h());
+  const ZoneUpdate zy = plan_zone_update(ymesh, ybasis, strip_zone(0.8), id, h0, Eigen::VectorXd::Ones(20), admissible);
+  CHECK(std::count(zy.change.removed.begin(), zy.change.removed.end(), static_cast<int>(m)) == 1);
+  CHECK(zy.change.removed.size() == 17);
   // A zone node outside its own region is refused with the node's place.
   EulerianZone bad = strip_zone(0.8);
   bad.nodes(0, 3) = 7.0;

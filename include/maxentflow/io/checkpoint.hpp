@@ -25,7 +25,7 @@ namespace maxentflow {
 /// different sequence fails at the first mismatch and says where.
 struct CheckpointFormat {
   static constexpr char magic[17] = "maxentflow-ckpt\n";
-  static constexpr std::uint32_t version = 2;
+  static constexpr std::uint32_t version = 3;
   static constexpr std::size_t header = 16 + 4 + 8 + 8;
   static std::uint64_t checksum(const char* p, std::size_t n) {
     std::uint64_t h = 1469598103934665603ull;  // FNV-1a, 64 bit

@@ -14,7 +14,8 @@
 // What a rezoning with the zone does, at the start of each step once the
 // material fills the zone:
 //  - every node inside the zone goes (the zone's own nodes after their move,
-//    and the material's that flowed in);
+//    and the material's that flowed in), and a material node next to a zone
+//    node (within keep_out of its spacing);
 //  - a zone node that the step carried out of the zone (its outflow side, the
 //    product leaving a die land) stays in the material where no node outside
 //    the zone is closer than emit_spacing times its spacing and it is in no
@@ -53,6 +54,9 @@ struct EulerianZone {
   /// The zone starts once every zone node lies in the material or within
   /// fill_tol times its spacing of the material's boundary.
   double fill_tol = 0.25;
+  /// A material node outside the zone closer than this times a zone node's
+  /// spacing to it goes when the zone's nodes are put back.
+  double keep_out = 0.25;
 
   void validate(const std::string& where) const {
     require(static_cast<bool>(inside), "an EulerianZone needs its region (inside)", where);
@@ -66,6 +70,8 @@ struct EulerianZone {
             detail::cat("EulerianZone emit_spacing must be > 0, got ", emit_spacing), where);
     require(std::isfinite(fill_tol) && fill_tol >= 0, detail::cat("EulerianZone fill_tol must be >= 0, got ", fill_tol),
             where);
+    require(std::isfinite(keep_out) && keep_out >= 0 && keep_out < emit_spacing,
+            detail::cat("EulerianZone keep_out must lie in [0, emit_spacing), got ", keep_out), where);
   }
 };
 
@@ -133,6 +139,16 @@ ZoneUpdate plan_zone_update(const Mesh& mesh, const Basis& basis, const Eulerian
     (zone_id(a) > 0 ? candidates : outside).push_back(static_cast<int>(a));
   }
   std::vector<char> gone(inside.begin(), inside.end());
+  // A material node outside the zone but next to a zone node (the flow can
+  // carry one onto a zone node on the zone's boundary) goes: the zone's node
+  // takes its place.
+  std::erase_if(outside, [&](int a) {
+    bool near = false;
+    for (Eigen::Index t = 0; t < T && !near; ++t)
+      near = (zone.nodes.col(t) - x.col(a)).norm() < zone.keep_out * h0_zone(t);
+    if (near) gone[static_cast<std::size_t>(a)] = 1;
+    return near;
+  });
   for (int c : candidates) {
     const double r = zone.emit_spacing * h0(c);
     bool crowded = admissible && !admissible(x.col(c));  // in a tool: put back, never carried on

@@ -53,6 +53,14 @@ struct NodeAdaptivityParams {
   /// turns interior, loses its contact row and flows into the tool.
   bool corner_nodes = true;
   double min_ratio = 0.35;   ///< remove an end of a kept edge shorter than this * h0
+  /// ... or shorter than this times its ends' mean nodal spacing h_a (the
+  /// basis's own, IntegrationMesh::h()): a cloud squeezed one way and
+  /// stretched the other (about 5:1 next to an extrusion ram late in the
+  /// stroke) has nodes so close, for the support they share, that their
+  /// basis functions nearly coincide; their coefficients are then poorly
+  /// determined and Picard's increments never settle (docs/method.md,
+  /// section 12). 0: off.
+  double min_spacing_ratio = 0.3;
   double max_ratio = 2.5;    ///< split a kept edge longer than this * h0
   double max_turn_deg = 20;  ///< boundary nodes are removed only where the boundary turns less
 };
@@ -128,6 +136,8 @@ NodeAdaptation plan_node_adaptation(const Mesh& mesh, const Eigen::VectorXd& h0,
   const auto& x = mesh.nodes();
   const Eigen::Index n = x.cols();
   require(h0.size() == n, detail::cat("h0 has ", h0.size(), " entries for ", n, " nodes"), where);
+  require(prm.min_spacing_ratio >= 0 && prm.min_spacing_ratio < 1,
+          detail::cat("need 0 <= min_spacing_ratio < 1, got ", prm.min_spacing_ratio), where);
   require(prm.min_ratio > 0 && prm.max_ratio > 2 * prm.min_ratio,
           detail::cat("need 0 < min_ratio (", prm.min_ratio, ") and max_ratio (", prm.max_ratio,
                       ") > 2 min_ratio, or a split edge's halves would be removed again"),
@@ -165,16 +175,24 @@ NodeAdaptation plan_node_adaptation(const Mesh& mesh, const Eigen::VectorXd& h0,
   auto ratio = [&](const MeshEdge& e) {
     return (x.col(e.b) - x.col(e.a)).norm() / (0.5 * (h0[e.a] + h0[e.b]));
   };
-  std::vector<double> r(edges.size());
-  for (std::size_t k = 0; k < edges.size(); ++k) r[k] = ratio(edges[k]);
+  // short[k] < 1: edge k is short, against h0 or against the basis's spacing.
+  const Eigen::VectorXd& ha = mesh.h();
+  std::vector<double> r(edges.size()), shortness(edges.size());
+  for (std::size_t k = 0; k < edges.size(); ++k) {
+    r[k] = ratio(edges[k]);
+    const double len = (x.col(edges[k].b) - x.col(edges[k].a)).norm();
+    shortness[k] = r[k] / prm.min_ratio;
+    if (prm.min_spacing_ratio > 0)
+      shortness[k] = std::min(shortness[k], len / (prm.min_spacing_ratio * 0.5 * (ha[edges[k].a] + ha[edges[k].b])));
+  }
   std::vector<std::size_t> order(edges.size());
   std::iota(order.begin(), order.end(), std::size_t{0});
 
   // Removal, shortest edges first.
-  std::sort(order.begin(), order.end(), [&](std::size_t i, std::size_t j) { return r[i] < r[j]; });
+  std::sort(order.begin(), order.end(), [&](std::size_t i, std::size_t j) { return shortness[i] < shortness[j]; });
   std::vector<char> locked(N, 0), gone(N, 0);
   for (std::size_t k : order) {
-    if (r[k] >= prm.min_ratio) break;
+    if (shortness[k] >= 1.0) break;
     const int a = edges[k].a, b = edges[k].b;
     // A boundary node goes only for a short boundary edge (crowding along the
     // side); crowding across it takes the interior node, or nothing.
@@ -184,7 +202,10 @@ NodeAdaptation plan_node_adaptation(const Mesh& mesh, const Eigen::VectorXd& h0,
     };
     int victim = -1;
     if (can(a) && can(b)) {
-      victim = turn[static_cast<std::size_t>(a)] <= turn[static_cast<std::size_t>(b)] ? a : b;
+      // The straighter end goes; of two alike, the more crowded (smaller h_a):
+      // the other may have a gap on its far side, which would only grow.
+      const double ta = turn[static_cast<std::size_t>(a)], tb = turn[static_cast<std::size_t>(b)];
+      victim = std::abs(ta - tb) > 1e-9 ? (ta < tb ? a : b) : (ha[a] <= ha[b] ? a : b);
     } else if (can(a)) {
       victim = a;
     } else if (can(b)) {

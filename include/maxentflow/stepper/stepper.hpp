@@ -140,6 +140,7 @@ struct StepRecord {
   int contact_nodes = 0;
   int nodes = 0;                            ///< nodes in the step's configuration
   int nodes_added = 0, nodes_removed = 0;   ///< by the rezoning before the step
+  bool zone_active = false;  ///< the Eulerian zone's nodes were put back before the step
   std::vector<Eigen::Vector2d> tool_force;  ///< force on each tool, configuration at the step start
   std::vector<double> tool_stroke;          ///< each tool's travel at the step start
   /// The solve's power balance (FlowSystem::power_balance), and the power the
@@ -444,7 +445,7 @@ class Stepper {
     out.put(r.power.plastic).put(r.power.volumetric).put(r.power.constraints).put(r.power.tractions).put(r.tool_power);
     out.put(r.seconds).put(r.mesh_seconds).put(r.basis_seconds).put(r.solve_seconds).put(r.post_seconds);
     out.put(r.assembly_seconds).put(r.factorization_seconds).put(r.linear_seconds);
-    out.put(r.note).put(r.predictor_fallbacks).put(r.nodal_gradient_fallback).put(r.degraded);
+    out.put(r.note).put(r.predictor_fallbacks).put(r.nodal_gradient_fallback).put(r.degraded).put(r.zone_active);
   }
   static StepRecord load_record(CheckpointIn& in) {
     StepRecord r;
@@ -470,6 +471,7 @@ class Stepper {
     r.predictor_fallbacks = i();
     r.nodal_gradient_fallback = in.get_bool();
     r.degraded = in.get_string();
+    r.zone_active = in.get_bool();
     return r;
   }
 
@@ -828,6 +830,7 @@ class Stepper {
       ZoneUpdate z = plan_zone_update(mesh, old, *zone_, fields_.flat(k_.zone), fields_.flat(k_.h0), zone_h0_,
                                       [this](const Eigen::Vector2d& p) { return contact_.admissible(p); });
       zone_active = z.active;
+      rec.zone_active = z.active;
       if (z.active && !zone_logged_ && log_) {
         *log_ << "note (step " << step_ + 1 << "): the material fills the Eulerian zone; its " << zone_->nodes.cols()
               << " nodes stay in place from now on\n";
