@@ -202,10 +202,12 @@ NodeAdaptation plan_node_adaptation(const Mesh& mesh, const Eigen::VectorXd& h0,
     };
     int victim = -1;
     if (can(a) && can(b)) {
-      // The straighter end goes; of two alike, the more crowded (smaller h_a):
-      // the other may have a gap on its far side, which would only grow.
+      // The straighter end goes; of two alike, the clearly more crowded
+      // (h_a smaller by 2 %): the other may have a gap on its far side, which
+      // would only grow. Not on round-off: a regular cloud keeps one pattern.
       const double ta = turn[static_cast<std::size_t>(a)], tb = turn[static_cast<std::size_t>(b)];
-      victim = std::abs(ta - tb) > 1e-9 ? (ta < tb ? a : b) : (ha[a] <= ha[b] ? a : b);
+      const bool crowded_b = ha[b] < 0.98 * ha[a];
+      victim = ta < tb ? a : (tb < ta ? b : (crowded_b ? b : a));
     } else if (can(a)) {
       victim = a;
     } else if (can(b)) {
