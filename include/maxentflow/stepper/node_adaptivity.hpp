@@ -175,7 +175,7 @@ NodeAdaptation plan_node_adaptation(const Mesh& mesh, const Eigen::VectorXd& h0,
   auto ratio = [&](const MeshEdge& e) {
     return (x.col(e.b) - x.col(e.a)).norm() / (0.5 * (h0[e.a] + h0[e.b]));
   };
-  // short[k] < 1: edge k is short, against h0 or against the basis's spacing.
+  // shortness[k] < 1: edge k is short, against h0 or against the basis's spacing.
   const Eigen::VectorXd& ha = mesh.h();
   std::vector<double> r(edges.size()), shortness(edges.size());
   for (std::size_t k = 0; k < edges.size(); ++k) {
