@@ -659,6 +659,25 @@ TEST_CASE("DirectSolver (MUMPS where built with it): the LU of a saddle system, 
     CHECK(g1.converged());
     CHECK((A * w1 + R).norm() <= 1e-9 * R.norm());
   }
+  {  // A matrix singular in single precision only (1 + 1e-9 rounds to 1 in
+     // float): the LU is made in double precision instead of failing.
+    Eigen::SparseMatrix<double, Eigen::ColMajor, int> B(2, 2);
+    B.insert(0, 0) = 1.0;
+    B.insert(1, 0) = 1.0;
+    B.insert(0, 1) = 1.0;
+    B.insert(1, 1) = 1.0 + 1e-9;
+    B.makeCompressed();
+    KeptLuSolver kb;
+    kb.analyze(B);
+    kb.factorize(B);
+    CHECK(kb.exact());
+    CHECK(kb.singular_single() == 1);
+    const Eigen::VectorXd rb = Eigen::VectorXd::LinSpaced(2, 1.0, 2.0);
+    CHECK((B * kb.solve(rb) - rb).norm() <= 1e-6 * rb.norm());
+    BasicMumpsSolver<float> fb;
+    fb.analyze(B);
+    CHECK_THROWS_AS(fb.factorize(B), Error);
+  }
 #endif
   GmresSolver<UmfpackSolver, KeptLuSolver> g;  // GMRES's default tolerance, 1e-9
   const Eigen::VectorXd w = g.solve(A, -R);  // no preconditioner given: the direct fallback

@@ -205,6 +205,8 @@ class GmresSolver {
     }
     kept_.analyze(A);
     kept_.factorize(A);
+    if constexpr (single_precision_kept)
+      if (!exact && kept_.exact()) ++exact_factorizations_;  // float pivots vanished
     kept_ok_ = true;
     kept_layout_ = layout_;
     if (layout_.size() != A.rows()) kept_layout_ = DofLayout{-1, {}};  // no layout given: matches none
@@ -241,7 +243,7 @@ class GmresSolver {
   /// The Kept policy can factorize a symmetric matrix as L D L^T.
   static constexpr bool symmetric_kept = requires(Kept& k) { k.set_symmetric(true); };
   /// Kept LUs made in double precision because a single-precision LU of the
-  /// same matrix left GMRES short of its tolerance.
+  /// same matrix left GMRES short of its tolerance or was singular.
   int exact_factorizations() const { return exact_factorizations_; }
 
   int last_iterations() const { return last_iterations_; }

@@ -121,6 +121,12 @@ class BasicMumpsSolver {
   }
   /// Numerical LU of A (the pattern analyze() saw).
   void factorize(const Matrix& A) {
+    if (const int info = try_factorize(A); info < 0) throw_error("factorization", info);
+  }
+  /// factorize(), but a numerically singular matrix (INFOG(1) = -10 or -6,
+  /// e.g. single-precision pivots too small) returns that code instead of
+  /// throwing; other failures throw. 0 on success.
+  int try_factorize(const Matrix& A) {
     const char* where = "MumpsSolver::factorize";
     require(A.isCompressed() && same_pattern(A),
             detail::cat("A (", A.rows(), " unknowns, ", A.nonZeros(), " nonzeros) has not the analysed pattern (",
@@ -138,10 +144,12 @@ class BasicMumpsSolver {
       Api::call(id_.get());
       const int info = id_->infog[0];
       if (info >= 0) break;
+      if (info == -10 || info == -6) return info;
       const bool room = info == -8 || info == -9 || info == -14 || info == -15 || info == -17 || info == -20;
       if (!room || relax >= 640) throw_error("factorization", info);
     }
     factorized_ = true;
+    return 0;
   }
   Eigen::VectorXd solve(const Eigen::VectorXd& b) const {
     require(factorized_ && b.size() == id_->n, "no factorization of this size", "MumpsSolver::solve");
@@ -236,10 +244,12 @@ class MixedMumpsSolver {
   }
   void factorize(const Matrix& A) {
     use_double_ = false;
-    if (!exact_) {
-      single_.factorize(A);
-      return;
-    }
+    // Single-precision pivots can vanish where the double ones do not (a
+    // matrix whose entries span more than float's range of precision, e.g.
+    // sticking contact next to a dead zone at the viscosity's cap): double
+    // then, for this matrix.
+    if (!exact_ && single_.try_factorize(A) == 0) return;
+    if (!exact_) ++singular_single_;
     if (!double_analyzed_) double_.analyze(A);
     double_analyzed_ = true;
     double_.factorize(A);
@@ -256,12 +266,16 @@ class MixedMumpsSolver {
   }
   /// The factors in use are double precision.
   bool exact() const { return use_double_; }
+  /// Factorizations made in double precision because the single-precision
+  /// one found the matrix numerically singular.
+  int singular_single() const { return singular_single_; }
   static constexpr const char* name() { return "MUMPS (single-precision factors, double on request)"; }
 
  private:
   BasicMumpsSolver<float> single_;
   BasicMumpsSolver<double> double_;
   bool exact_ = false, double_analyzed_ = false, use_double_ = false;
+  int singular_single_ = 0;
 };
 
 static_assert(LinearSolver<MixedMumpsSolver>);
