@@ -187,6 +187,7 @@ class MaxEntBasis {
             Point guess;
             const bool warm = prm_.warm_start && have && (xi - previous).norm() <= ws.last_h_ref;
             if (warm) guess = lambda + dlambda * (xi - previous);
+            ws.shift_guess = warm ? ws.last_shift : std::numeric_limits<double>::quiet_NaN();
             const Info info = evaluate_point(xi, ws, warm ? &guess : nullptr, gradients, i);
             const auto s = static_cast<std::size_t>(t.offset[static_cast<std::size_t>(i)]);
             if (t.offset[static_cast<std::size_t>(i) + 1] - t.offset[static_cast<std::size_t>(i)] != info.m)
@@ -216,6 +217,10 @@ class MaxEntBasis {
     std::vector<int> support;
     std::vector<double> grad;  // Dim per support node
     double last_h_ref = 0;
+    // The dual's exponent shift: the last interior solve's, and the first
+    // guess of the next (a warm-started neighbour's saves the pass for max f).
+    double last_shift = std::numeric_limits<double>::quiet_NaN();
+    double shift_guess = std::numeric_limits<double>::quiet_NaN();
   };
   struct Info {
     int m = 0;  // support size; results in the workspace
@@ -509,7 +514,8 @@ class MaxEntBasis {
   Info solve_interior(const Point& x, Workspace& ws, int m, double h_ref, const Point* lambda0,
                       bool gradients, int id) const {
     const Point start = lambda0 ? *lambda0 : Point::Zero();
-    auto res = detail::solve_dual<Dim>(ws.dual, m, start, prm_.newton_tol * h_ref, prm_.max_iterations);
+    auto res = detail::solve_dual<Dim>(ws.dual, m, start, prm_.newton_tol * h_ref, prm_.max_iterations,
+                                       lambda0 ? ws.shift_guess : std::numeric_limits<double>::quiet_NaN());
     // Safeguard: a warm start predicted across a kink of lambda(x) (e.g. from a
     // hull point) can start Newton where it cannot descend; restart cold.
     if (res.status != detail::DualStatus::converged && lambda0)
@@ -528,6 +534,7 @@ class MaxEntBasis {
                               " support nodes; the point may lie outside the hull of its neighbours"),
                   where_point(x, id));
     }
+    ws.last_shift = res.shift;
     Info info;
     info.m = m;
     info.iterations = res.iterations;

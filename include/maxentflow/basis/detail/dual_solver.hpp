@@ -102,6 +102,7 @@ struct DualResult {
   Mat J = Mat::Zero();  // Hessian of ln Z: covariance of (x - x_a) under p
   int iterations = 0;
   DualStatus status = DualStatus::converged;
+  double shift = 0;  ///< the exponents' shift of the last evaluation (a nearby point's first guess)
   double residual() const { return r.norm(); }
 };
 
@@ -125,7 +126,7 @@ struct LogPartition {
 /// exp(step . (x - x_a)) from its Taylor polynomial (degree 9, or 5 below
 /// 1e-3: truncation < 3e-20) instead of a whole exp: Newton's last steps.
 template <int D>
-LogPartition evaluate_dual(DualWorkspace<D>& ws, Eigen::Index m, const Eigen::Matrix<double, D, 1>& lambda,
+[[gnu::always_inline]] inline LogPartition evaluate_dual(DualWorkspace<D>& ws, Eigen::Index m, const Eigen::Matrix<double, D, 1>& lambda,
                            Eigen::Matrix<double, D, 1>& r, Eigen::Matrix<double, D, D>& J,
                            double shift = std::numeric_limits<double>::quiet_NaN(),
                            const Eigen::Matrix<double, D, 1>* step = nullptr) {
@@ -242,18 +243,19 @@ LogPartition evaluate_dual(DualWorkspace<D>& ws, Eigen::Index m, const Eigen::Ma
 template <int D>
 DualResult<D> solve_dual(DualWorkspace<D>& ws, Eigen::Index m,
                          const Eigen::Matrix<double, D, 1>& lambda0, double tol_abs,
-                         int max_iterations) {
+                         int max_iterations, double shift0 = std::numeric_limits<double>::quiet_NaN()) {
   using Vec = Eigen::Matrix<double, D, 1>;
   using Mat = Eigen::Matrix<double, D, D>;
   ws.pad(m);
   DualResult<D> res;
   res.lambda = lambda0;
+  LogPartition lnZ = evaluate_dual<D>(ws, m, res.lambda, res.r, res.J, shift0);
   const auto finish = [&](DualStatus status) {
     res.status = status;
+    res.shift = lnZ.shift;
     ws.p.head(m) *= 1.0 / ws.Z;
     return res;
   };
-  LogPartition lnZ = evaluate_dual<D>(ws, m, res.lambda, res.r, res.J);
   for (int it = 0;; ++it) {
     res.iterations = it;
     if (!lnZ.finite() || !res.r.allFinite()) return finish(DualStatus::not_finite);
