@@ -843,6 +843,17 @@ TEST_CASE("Eulerian zone: nodes back in place with the interpolant, outflow at i
   CHECK(none.change.empty());
   CHECK(in_material(mesh, Eigen::Vector2d(10.4, 2), 1e-9));
   CHECK_FALSE(in_material(mesh, Eigen::Vector2d(10.5, 2), 1e-3));
+  // A node's own fill tolerance: 0.6 beyond the material's side at 10.4 is
+  // not filled at fill_tol 0.25, filled at 0.75 on that node alone.
+  beyond.nodes(0, 19) = 11.0;
+  beyond.fill_tols.assign(20, 0.25);
+  beyond.fill_tols[19] = 0.75;
+  beyond.validate("test");
+  CHECK(plan_zone_update(mesh, basis, beyond, id, h0, Eigen::VectorXd::Ones(20)).active);
+  beyond.fill_tols[19] = 0.55;
+  CHECK_FALSE(zone_filled(mesh, beyond, Eigen::VectorXd::Ones(20)));
+  beyond.fill_tols.pop_back();
+  CHECK_THROWS_WITH(beyond.validate("test"), Catch::Contains("fill_tols needs one value per zone node (20), got 19"));
   // A material node carried next to a zone node on the zone's edge (0.1
   // from it, within keep_out) goes with the nodes inside.
   Eigen::Matrix2Xd y = x;

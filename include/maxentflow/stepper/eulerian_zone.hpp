@@ -57,6 +57,14 @@ struct EulerianZone {
   /// A material node outside the zone closer than this times a zone node's
   /// spacing to it goes when the zone's nodes are put back.
   double keep_out = 0.25;
+  /// Per zone node (or empty: fill_tol for all), that node's fill_tol: e.g.
+  /// larger on a die land's face, where a Lagrangian product on a fine cloud
+  /// runs a fraction of a spacing below the land (the zone then puts it back
+  /// on the land once).
+  std::vector<double> fill_tols;
+  double fill_tol_of(Eigen::Index t) const {
+    return fill_tols.empty() ? fill_tol : fill_tols[static_cast<std::size_t>(t)];
+  }
 
   void validate(const std::string& where) const {
     require(static_cast<bool>(inside), "an EulerianZone needs its region (inside)", where);
@@ -70,6 +78,13 @@ struct EulerianZone {
             detail::cat("EulerianZone emit_spacing must be > 0, got ", emit_spacing), where);
     require(std::isfinite(fill_tol) && fill_tol >= 0, detail::cat("EulerianZone fill_tol must be >= 0, got ", fill_tol),
             where);
+    require(fill_tols.empty() || static_cast<Eigen::Index>(fill_tols.size()) == nodes.cols(),
+            detail::cat("EulerianZone fill_tols needs one value per zone node (", nodes.cols(), "), got ",
+                        fill_tols.size()),
+            where);
+    for (std::size_t t = 0; t < fill_tols.size(); ++t)
+      require(std::isfinite(fill_tols[t]) && fill_tols[t] >= 0,
+              detail::cat("EulerianZone fill_tols[", t, "] must be >= 0, got ", fill_tols[t]), where);
     require(std::isfinite(keep_out) && keep_out >= 0 && keep_out < emit_spacing,
             detail::cat("EulerianZone keep_out must lie in [0, emit_spacing), got ", keep_out), where);
   }
@@ -99,12 +114,12 @@ bool in_material(const Mesh& mesh, const Eigen::Vector2d& p, double tol) {
 }
 
 /// Whether the material (the region of the mesh's boundary loops) fills the
-/// zone: every zone node in it or within fill_tol times its spacing
+/// zone: every zone node in it or within its fill_tol times its spacing
 /// h0_zone of its boundary.
 template <class Mesh>
 bool zone_filled(const Mesh& mesh, const EulerianZone& zone, const Eigen::VectorXd& h0_zone) {
   for (Eigen::Index t = 0; t < zone.nodes.cols(); ++t)
-    if (!in_material(mesh, zone.nodes.col(t), zone.fill_tol * h0_zone(t))) return false;
+    if (!in_material(mesh, zone.nodes.col(t), zone.fill_tol_of(t) * h0_zone(t))) return false;
   return true;
 }
 
