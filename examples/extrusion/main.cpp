@@ -228,7 +228,7 @@ void add_options(CLI::App& app, Setup& s, Options& o) {
       app.add_flag("--zone", o.zone,
                    "An Eulerian zone at the die: the container's end and the land keep their nodes in place once "
                    "the material fills them, from 2 h ahead of the ram's last position (eulerian_zone.hpp). The "
-                   "default for a square die in plane strain where the stroke leaves room for it; here an error "
+                   "default for a square die where the stroke leaves room for it; here an error "
                    "where it cannot be set");
   app.add_flag("--no-zone", o.no_zone, "No Eulerian zone: every node travels with the material (Lagrangian)")
       ->excludes(zone_flag);

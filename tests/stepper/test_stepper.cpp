@@ -787,6 +787,7 @@ namespace {
 // A zone of the block [0, 10] x [0, 4] (11 x 5 nodes, h = 1): x in [3, 6].
 EulerianZone strip_zone(double emit_spacing) {
   EulerianZone z;
+  z.emit_surface_spacing = emit_spacing;
   z.inside = [](const Eigen::Vector2d& p) { return p.x() >= 3 - 1e-12 && p.x() <= 6 + 1e-12; };
   z.nodes.resize(2, 20);
   for (int i = 0; i < 4; ++i)
@@ -834,6 +835,16 @@ TEST_CASE("Eulerian zone: nodes back in place with the interpolant, outflow at i
   const ZoneUpdate wide = plan_zone_update(mesh, basis, strip_zone(1.2), id, h0, Eigen::VectorXd::Ones(20));
   CHECK(wide.emitted.empty());
   CHECK(wide.change.removed.size() == 20);
+  // The surface's own emit spacing: the column's node on the material's
+  // boundary (6.4, 0), 1 from the material's (7.4, 0), stays at 0.6; the
+  // ones inside go (the top one is in the "tool").
+  EulerianZone surface = strip_zone(1.2);
+  surface.emit_surface_spacing = 0.6;
+  surface.validate("test");
+  const ZoneUpdate surf = plan_zone_update(mesh, basis, surface, id, h0, Eigen::VectorXd::Ones(20), admissible);
+  REQUIRE(surf.emitted.size() == 1);
+  CHECK((x.col(surf.emitted[0]) - Eigen::Vector2d(6.4, 0)).norm() < 1e-12);
+  CHECK(surf.change.removed.size() == 19);
   // Not filled (a zone node beyond the material): nothing changes.
   EulerianZone beyond = strip_zone(0.8);
   beyond.inside = [](const Eigen::Vector2d& p) { return p.x() >= 3 - 1e-12 && p.x() <= 12; };
