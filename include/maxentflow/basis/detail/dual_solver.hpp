@@ -125,11 +125,13 @@ struct LogPartition {
 /// small (|step . (x - x_a)| <= 0.05 for all a), the weights are updated by
 /// exp(step . (x - x_a)) from its Taylor polynomial (degree 9, or 5 below
 /// 1e-3: truncation < 3e-20) instead of a whole exp: Newton's last steps.
+/// Inlined into solve_dual's loop (1 M points: ~3 % faster than a call).
 template <int D>
-[[gnu::always_inline]] inline LogPartition evaluate_dual(DualWorkspace<D>& ws, Eigen::Index m, const Eigen::Matrix<double, D, 1>& lambda,
-                           Eigen::Matrix<double, D, 1>& r, Eigen::Matrix<double, D, D>& J,
-                           double shift = std::numeric_limits<double>::quiet_NaN(),
-                           const Eigen::Matrix<double, D, 1>* step = nullptr) {
+[[gnu::always_inline]] inline LogPartition evaluate_dual(DualWorkspace<D>& ws, Eigen::Index m,
+                                                         const Eigen::Matrix<double, D, 1>& lambda,
+                                                         Eigen::Matrix<double, D, 1>& r, Eigen::Matrix<double, D, D>& J,
+                                                         double shift = std::numeric_limits<double>::quiet_NaN(),
+                                                         const Eigen::Matrix<double, D, 1>* step = nullptr) {
   constexpr int W = dual_lanes;
   const Eigen::Index mp = DualWorkspace<D>::padded(m);
   const double* q = ws.q.data();
