@@ -19,6 +19,7 @@
 #include <numbers>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <maxentflow/maxentflow.hpp>
@@ -67,6 +68,17 @@ void add_options(CLI::App& app, Options& o) {
       ->check(CLI::Range(1e-12, 0.1));
   app.add_option("--n", o.s.n, "Norton-Hoff exponent n")->check(CLI::PositiveNumber);
   app.add_flag("--no-rezone{false}", o.s.rezone, "Keep the initial nodes (no node removal or insertion)");
+  app.add_flag("!--no-zone", o.s.zone, "No Eulerian zone round the tool's tip (every node Lagrangian)");
+  app.add_option("--zone-front", o.s.zone_front, "Eulerian zone: extent ahead of the tip, in t0")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--zone-depth", o.s.zone_depth, "Eulerian zone: depth below the tip, in t0")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--zone-back", o.s.zone_back, "Eulerian zone: extent behind the tip, in t0")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--zone-strip", o.s.zone_strip, "Eulerian zone: the chip's strip along the rake face, width in t0")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--zone-rise", o.s.zone_rise, "Eulerian zone: the strip's height above the uncut surface, in t0")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--vtu-every", o.vtu_every, "Write a VTU every this many steps (and at steps 1 and last)")
       ->check(CLI::Range(1, 1000000));
   app.add_option("--out-dir", o.out, "Results folder");
@@ -93,6 +105,27 @@ struct ToolFrame {
         along(std::sin(o.s.rake * deg), std::cos(o.s.rake * deg)),
         normal(-std::cos(o.s.rake * deg), std::sin(o.s.rake * deg)) {}
 };
+
+// The tool's normal contact force on its clearance face (the first piece,
+// from the flank's end to the tip) and on the whole tool, lumped: a node in
+// contact carries its contact pressure times half its boundary edges.
+std::pair<double, double> contact_force_split(const Stepper<NortonHoff>& sim) {
+  const auto& x = sim.nodes();
+  const Eigen::MatrixXd& pn = sim.nodal_field("contact_pressure");
+  std::vector<double> len(static_cast<std::size_t>(x.cols()), 0.0);
+  for (const auto& seg : sim.mesh().boundary_segments()) {
+    const double l = 0.5 * (x.col(seg.b) - x.col(seg.a)).norm();
+    len[static_cast<std::size_t>(seg.a)] += l;
+    len[static_cast<std::size_t>(seg.b)] += l;
+  }
+  double clearance = 0, all = 0;
+  for (int a : sim.mesh().boundary_nodes()) {
+    const double f = std::abs(pn(0, a)) * len[static_cast<std::size_t>(a)];
+    all += f;
+    if (f > 0 && sim.tools()[0].closest(x.col(a)).piece == 0) clearance += f;
+  }
+  return {clearance, all};
+}
 
 // The chip thickness on a configuration: along the rake face's normal, from
 // the face to the chip's free surface, at stations 1.5 t0 to 3 t0 up the face
@@ -174,6 +207,10 @@ int main(int argc, char** argv) {
               << "): the nodes would not resolve it\n";
     return 2;
   }
+  if (o.s.zone && o.s.edge_radius > 0) {
+    std::cout << "cutting: no Eulerian zone at the tip (it needs a sharp tool); every node is Lagrangian\n";
+    o.s.zone = false;
+  }
   const fs::path dir(o.out);
   try {
     // 2-4. The case: the workpiece grid, the stepper (rezoning on), the tool
@@ -190,8 +227,9 @@ int main(int argc, char** argv) {
     CsvTable forces({"step", "time", "cut_length", "Fc", "Ft"});
     CsvTable chip({"step", "time", "cut_length", "chip_thickness", "shear_angle_deg"});
     const double area0 = o.s.length * o.s.height;
-    double worst_area = 0, min_gap = 0;
-    double* const running[] = {&worst_area, &min_gap};
+    double worst_area = 0, min_gap = 0, clearance_force = 0, contact_force = 0;
+    double* const running[] = {&worst_area, &min_gap, &clearance_force, &contact_force};
+    const int window_from = o.steps - std::max(1, static_cast<int>(0.3 * o.steps));  // the report's window
     const std::string signature = examples::RestartOptions::signature(app);
     if (o.restart.restarting())
       examples::RestartOptions::resume(dir, signature, sim, results, o.steps, "cutting", [&](CheckpointIn& in) {
@@ -215,6 +253,11 @@ int main(int argc, char** argv) {
       if (std::isfinite(tc)) {
         chip.cell(k).cell(t_start).cell(cut).cell(tc).cell(shear_angle_deg(o.s.t0, tc, o.s.rake));
         chip.end_row();
+      }
+      if (k > window_from) {
+        const auto [clearance, all] = contact_force_split(sim);
+        clearance_force += clearance;
+        contact_force += all;
       }
       worst_area = std::max(worst_area, std::abs(sim.mesh().total_area() / area0 - 1));
       for (int a : sim.mesh().boundary_nodes())
@@ -264,7 +307,9 @@ int main(int argc, char** argv) {
               << "start, +" << added << " -" << removed << " by rezoning), " << total << " s\n"
               << "  max area change " << 100 * worst_area << " %, min gap " << min_gap << " h\n"
               << "  cutting force Fc over the last 30 % of the steps: " << fc_steady << "; Ft/Fc " << ratio
-              << " (frictionless rake: -tan(rake) = " << ratio_exact << ")\n"
+              << " (frictionless rake: -tan(rake) = " << ratio_exact << "); the clearance face carries "
+              << 100 * clearance_force / std::max(contact_force, 1e-300)
+              << " % of the normal contact force (lumped from the nodal pressures)\n"
               << "  chip thickness "
               << (std::isfinite(tc) ? detail::cat(tc, " (t0 ", o.s.t0, "), shear angle ", phi, " deg")
                                     : std::string("not measured (no chip above the uncut surface yet)"))

@@ -884,58 +884,134 @@ TEST_CASE("Eulerian zone: nodes back in place with the interpolant, outflow at i
   CHECK_THROWS_WITH(bad.validate("test"), Catch::Contains("node 3 at (7, 3) lies outside the zone"));
 }
 
-TEST_CASE("V1 with an Eulerian zone: compression stays exact as the material flows through the zone",
-          "[verification][stepper][zone]") {
-  // The homogeneous field is linear, so the max-ent solution is exact on any
-  // cloud: with a zone in the middle of the block whose nodes come back to
-  // their places every step (the material flowing in from the top, out at
-  // the sides and the bottom), the plate force stays exact and the block a
-  // rectangle.
-  const double W0 = 10, H0 = 12, V = 0.6, dt = 1.0;
-  const NortonHoff mat(150.0, 0.2, 1e-8);
+namespace {
+// V1 (plane-strain compression between plates) on a 7 x 8 block, 10 x 12,
+// with a 4 x 4 Eulerian zone over [2, 6] x [y0, y0 + 4], fixed in space or
+// moving with the top plate (tool 1). The homogeneous field is linear, so
+// the max-ent solution is exact on any cloud: the plate force stays exact
+// and the block a rectangle while the zone's nodes come back to their
+// places every step.
+constexpr double zone_v1_V = 0.6, zone_v1_H0 = 12, zone_v1_W0 = 10;
+Stepper<NortonHoff> zone_v1_block() {
   StepperParams prm;
-  prm.dt = dt;
+  prm.dt = 1.0;
   prm.predictor = Predictor::material;
   prm.node_update = NodeUpdate::euler;
   prm.adapt.enabled = true;
-  Stepper<NortonHoff> s(block_nodes(7, 8, W0, H0, false), mat, prm);
-  add_plates(s, H0, V);
+  return Stepper<NortonHoff>(block_nodes(7, 8, zone_v1_W0, zone_v1_H0, false), NortonHoff(150.0, 0.2, 1e-8), prm);
+}
+EulerianZone zone_v1_zone(double y0, int tool) {
   EulerianZone zone;
-  zone.inside = [](const Eigen::Vector2d& p) { return p.x() >= 2 && p.x() <= 6 && p.y() >= 2 && p.y() <= 6; };
+  zone.tool = tool;
+  zone.inside = [y0](const Eigen::Vector2d& p) { return p.x() >= 2 && p.x() <= 6 && p.y() >= y0 && p.y() <= y0 + 4; };
   zone.nodes.resize(2, 16);
   for (int i = 0; i < 4; ++i)
-    for (int j = 0; j < 4; ++j) zone.nodes.col(4 * i + j) << 2 + 4.0 * i / 3, 2 + 4.0 * j / 3;
-  s.set_eulerian_zone(zone);
-  CHECK_THROWS_WITH(s.set_eulerian_zone(zone), Catch::Contains("has an Eulerian zone already"));
-  double W = W0, H = H0, max_force_error = 0;
+    for (int j = 0; j < 4; ++j) zone.nodes.col(4 * i + j) << 2 + 4.0 * i / 3, y0 + 4.0 * j / 3;
+  return zone;
+}
+// Eight steps; the steps after the first whose solve had every zone node
+// where the zone (moved with its tool) puts it.
+int zone_v1_march(Stepper<NortonHoff>& s, const EulerianZone& zone) {
+  const NortonHoff& mat = s.material();
+  const double V = zone_v1_V, dt = s.parameters().dt;
+  double W = zone_v1_W0, H = zone_v1_H0, max_force_error = 0;
   int in_place = 0;
   for (int k = 0; k < 8; ++k) {
     const double e = V / H, mu = mat.viscosity(2 * e / std::sqrt(3.0)).mu, F = 4 * mu * e * W;
+    const Eigen::Vector2d d = zone.tool < 0 ? Eigen::Vector2d::Zero() : s.tools()[1].displacement();
     const auto& rec = s.step();
     max_force_error = std::max({max_force_error, std::abs(rec.tool_force[1].y() - F) / F,
                                 std::abs(rec.tool_force[0].y() + F) / F});
-    // From the second step on every zone node is where the zone put it.
     int found = 0;
     for (Eigen::Index t = 0; t < zone.nodes.cols(); ++t)
       for (Eigen::Index a = 0; a < s.nodes_solved().cols(); ++a)
-        if ((s.nodes_solved().col(a) - zone.nodes.col(t)).norm() == 0.0) {
+        if ((s.nodes_solved().col(a) - zone.nodes.col(t) - d).norm() < 1e-12) {
           ++found;
           break;
         }
-    if (k > 0 && found == 16) ++in_place;
+    if (k > 0 && rec.zone_active && found == 16) ++in_place;
     W *= 1 + e * dt;
     H -= V * dt;
-    // The block stays a rectangle W x H.
     CHECK(s.nodes().row(0).maxCoeff() == Approx(W).epsilon(1e-8));
     CHECK(s.nodes().row(1).maxCoeff() == Approx(H).epsilon(1e-8));
     CHECK(s.nodes().row(0).minCoeff() == Approx(0).margin(1e-8));
   }
   CHECK(max_force_error < 1e-8);
-  CHECK(in_place == 7);
+  return in_place;
+}
+}  // namespace
+
+TEST_CASE("V1 with an Eulerian zone: compression stays exact as the material flows through the zone",
+          "[verification][stepper][zone]") {
+  // The zone in the middle of the block: the material flows in from the
+  // top, out at the sides and the bottom.
+  Stepper<NortonHoff> s = zone_v1_block();
+  add_plates(s, zone_v1_H0, zone_v1_V);
+  const EulerianZone zone = zone_v1_zone(2, -1);
+  s.set_eulerian_zone(zone);
+  CHECK_THROWS_WITH(s.set_eulerian_zone(zone), Catch::Contains("has an Eulerian zone already"));
+  CHECK(zone_v1_march(s, zone) == 7);
   // The zone's nodes are put back, not added: the count stays that of the block.
   CHECK(s.nodes().cols() >= 56 - 8);
   CHECK(s.nodes().cols() <= 56 + 16);
   CHECK(s.nodal_field("zone_node").maxCoeff() == 16);
+}
+
+TEST_CASE("Eulerian zone: slow outflow emitted ahead along its path; a zone translated", "[stepper][zone]") {
+  // The block moved by 0.1 along x (a twelfth of a spacing, as behind a
+  // cutting tool's tip): the zone's column from 6 is at 6.1, just out.
+  Eigen::Matrix2Xd x = block_nodes(11, 5, 10, 4, false);
+  Eigen::VectorXd id = Eigen::VectorXd::Zero(x.cols());
+  for (Eigen::Index a = 0; a < x.cols(); ++a) {
+    const double c = x(0, a);
+    if (c >= 3 && c <= 6) id(a) = 5 * (c - 3) + x(1, a) + 1;
+    x(0, a) += 0.1;
+  }
+  const IntegrationMesh<> mesh(x);
+  const Eigen::VectorXd h0 = Eigen::VectorXd::Ones(x.cols());
+  const MaxEntBasis<2> basis(x, mesh.h());
+  // Where the step left them (emit_ahead 0): 0.1 from the zone's nodes.
+  EulerianZone z = strip_zone(0.8);
+  const ZoneUpdate here = plan_zone_update(mesh, basis, z, id, h0, Eigen::VectorXd::Ones(20));
+  REQUIRE(here.emitted.size() == 5);
+  for (Eigen::Index k = 0; k < 5; ++k) CHECK(here.emitted_at(0, k) == Approx(6.1));
+  // emit_ahead 0.5: half a spacing downstream of their places, along their
+  // displacement (+x), in the material and out of the zone (0.6 from the
+  // material's column at 7.1, beyond an emit spacing of 0.5).
+  z = strip_zone(0.5);
+  z.emit_ahead = 0.5;
+  z.validate("test");
+  const ZoneUpdate ahead = plan_zone_update(mesh, basis, z, id, h0, Eigen::VectorXd::Ones(20));
+  REQUIRE(ahead.emitted.size() == 5);
+  for (Eigen::Index k = 0; k < 5; ++k) {
+    CHECK(ahead.emitted_at(0, k) == Approx(6.5));
+    CHECK(ahead.emitted_at(1, k) == Approx(x(1, ahead.emitted[static_cast<std::size_t>(k)])));
+  }
+  // ... and not where that place is crowded: the material's column at 7.1
+  // is 0.6 from 6.5, within an emit spacing of 0.7.
+  EulerianZone crowded = z;
+  crowded.emit_spacing = crowded.emit_surface_spacing = 0.7;
+  CHECK(plan_zone_update(mesh, basis, crowded, id, h0, Eigen::VectorXd::Ones(20)).emitted.empty());
+  z.emit_ahead = -1;
+  CHECK_THROWS_WITH(z.validate("test"), Catch::Contains("emit_ahead must be >= 0"));
+  // A zone translated: its nodes and its region move together.
+  const EulerianZone moved = strip_zone(0.8).translated({1.5, -2});
+  CHECK((moved.nodes.col(7) - strip_zone(0.8).nodes.col(7) - Eigen::Vector2d(1.5, -2)).norm() == 0.0);
+  CHECK(moved.inside({7.4, 0}));
+  CHECK_FALSE(moved.inside({4.4, 0}));
+}
+
+TEST_CASE("V1 with an Eulerian zone that moves with the top plate: compression stays exact",
+          "[verification][stepper][zone]") {
+  // The zone carried down by the plate (as a cutting tool's travels with
+  // the tool), 2 below it: every step its nodes are where the plate has
+  // taken them, and the homogeneous solution stays exact.
+  Stepper<NortonHoff> s = zone_v1_block();
+  const EulerianZone zone = zone_v1_zone(6, 1);
+  CHECK_THROWS_WITH(s.set_eulerian_zone(zone), Catch::Contains("moves with tool 1 but the stepper has 0 tools"));
+  add_plates(s, zone_v1_H0, zone_v1_V);
+  s.set_eulerian_zone(zone);
+  CHECK(zone_v1_march(s, zone) == 7);
 }
 
 TEST_CASE("V1 with rezoning: plane-strain compression to half height stays exact as nodes come and go",

@@ -64,6 +64,14 @@ class ToolContact {
     /// dead-zone corner swapped faces every step (a new multiplier, a new
     /// layout, a start 5 % off; docs/method.md section 4).
     double corner_tol = 0.05;
+    /// An Eulerian zone's node (ContactPoint::put_back) with a tensile
+    /// multiplier is released even inside a contact zone (E2's die land,
+    /// where the product's contact carries almost no pressure). false: as
+    /// any node, only from a zone's edge. Next to a cutting tool's tip the
+    /// hat multipliers oscillate (the tip's node compressive, the next one up
+    /// the rake face tensile); released, that node ran into the tool by
+    /// 0.03-0.1 h every step, and cost an active-set re-solve each step.
+    bool release_put_back = true;
   };
 
   ToolContact() = default;
@@ -268,7 +276,7 @@ class ToolContact {
       }
       if (edge) {
         for (std::size_t k : run) release[k] = 1;
-      } else if (points_[i].put_back) {
+      } else if (points_[i].put_back && prm_.release_put_back) {
         release[i] = 1;  // an Eulerian zone's node: no penetration builds up
       }
     }

@@ -42,7 +42,8 @@
 
 namespace maxentflow {
 
-/// A region fixed in space whose nodes stay where they are put (see above).
+/// A region fixed in space, or to a moving tool, whose nodes stay where they
+/// are put (see above).
 struct EulerianZone {
   /// True inside the zone or on its boundary.
   std::function<bool(const Eigen::Vector2d&)> inside;
@@ -58,6 +59,17 @@ struct EulerianZone {
   /// to it (axisymmetric E2: 0.6 h deep next to the land's end, with the
   /// graded grid's rows closer there than its columns).
   double emit_surface_spacing = 0.4;
+  /// Where the material leaves the zone slowly (a zone node carried out by
+  /// less than emit_ahead times its spacing in a step), a zone node that
+  /// stays in the material is emitted emit_ahead of its spacing downstream
+  /// of its place, along its own displacement (0: where the step left it).
+  /// The material behind a cutting tool's tip leaves at a twelfth of a
+  /// spacing a step: a node emitted where it lies sits next to the zone's
+  /// node that comes back (keep_out removes it the next step, so nothing
+  /// is ever emitted, and a node that close would leave the basis two
+  /// nearly equal functions). In steady flow the emitted node's data is
+  /// what the flow carries along its path there.
+  double emit_ahead = 0.0;
   /// The zone starts once every zone node lies in the material or within
   /// fill_tol times its spacing of the material's boundary.
   double fill_tol = 0.25;
@@ -69,8 +81,21 @@ struct EulerianZone {
   /// runs a fraction of a spacing below the land (the zone then puts it back
   /// on the land once).
   std::vector<double> fill_tols;
+  /// The tool the zone moves with (its index in the stepper; -1: fixed in
+  /// space): `inside` and `nodes` are then given where the tool starts (its
+  /// displacement zero) and translate with it, e.g. the region round a
+  /// cutting tool's tip, where the flow is steady in the tool's frame.
+  int tool = -1;
   double fill_tol_of(Eigen::Index t) const {
     return fill_tols.empty() ? fill_tol : fill_tols[static_cast<std::size_t>(t)];
+  }
+
+  /// The zone translated by d (its nodes and its region).
+  EulerianZone translated(const Eigen::Vector2d& d) const {
+    EulerianZone z = *this;
+    z.nodes.colwise() += d;
+    z.inside = [f = inside, d](const Eigen::Vector2d& p) { return f(p - d); };
+    return z;
   }
 
   void validate(const std::string& where) const {
@@ -92,6 +117,9 @@ struct EulerianZone {
     for (std::size_t t = 0; t < fill_tols.size(); ++t)
       require(std::isfinite(fill_tols[t]) && fill_tols[t] >= 0,
               detail::cat("EulerianZone fill_tols[", t, "] must be >= 0, got ", fill_tols[t]), where);
+    require(tool >= -1, detail::cat("EulerianZone tool must be a tool's index or -1, got ", tool), where);
+    require(std::isfinite(emit_ahead) && emit_ahead >= 0,
+            detail::cat("EulerianZone emit_ahead must be >= 0, got ", emit_ahead), where);
     require(std::isfinite(emit_surface_spacing) && emit_surface_spacing > 0,
             detail::cat("EulerianZone emit_surface_spacing must be > 0, got ", emit_surface_spacing), where);
     require(std::isfinite(keep_out) && keep_out >= 0 && keep_out < std::min(emit_spacing, emit_surface_spacing),
@@ -106,6 +134,7 @@ struct ZoneUpdate {
   bool active = false;       ///< the material fills the zone (else nothing changes)
   NodeAdaptation change;     ///< removed: old nodes; inserted: the zone's nodes, in order, with weights
   std::vector<int> emitted;  ///< old zone nodes that stay in the material, outside the zone
+  Eigen::Matrix2Xd emitted_at;  ///< where each emitted node goes (EulerianZone::emit_ahead)
   int fallbacks = 0;         ///< zone nodes whose data is the nearest old node's (the basis failed there)
 };
 
@@ -177,19 +206,35 @@ ZoneUpdate plan_zone_update(const Mesh& mesh, const Basis& basis, const Eulerian
   });
   std::vector<char> on_boundary(static_cast<std::size_t>(n), 0);
   for (int a : mesh.boundary_nodes()) on_boundary[static_cast<std::size_t>(a)] = 1;
+  std::vector<Eigen::Vector2d> at;  // where each emitted node goes
+  const auto placed = [&](int a) {
+    const auto e = std::find(out.emitted.begin(), out.emitted.end(), a);
+    return e == out.emitted.end() ? Eigen::Vector2d(x.col(a)) : at[static_cast<std::size_t>(e - out.emitted.begin())];
+  };
   for (int c : candidates) {
     const double r =
         (on_boundary[static_cast<std::size_t>(c)] ? zone.emit_surface_spacing : zone.emit_spacing) * h0(c);
-    bool crowded = admissible && !admissible(x.col(c));  // in a tool: put back, never carried on
+    Eigen::Vector2d p = x.col(c);
+    const Eigen::Vector2d home = zone.nodes.col(static_cast<Eigen::Index>(zone_id(c)) - 1), d = p - home;
+    bool crowded = false;
+    if (d.norm() < zone.emit_ahead * h0(c)) {
+      // Slow outflow: on along its path, still in the material and out of the zone.
+      p = home + zone.emit_ahead * h0(c) * d / std::max(d.norm(), 1e-300);
+      crowded = d.norm() == 0.0 || zone.inside(p) || !in_material(mesh, p, zone.fill_tol * h0(c));
+    }
+    crowded = crowded || (admissible && !admissible(p));  // in a tool: put back, never carried on
     for (std::size_t k = 0; k < outside.size() && !crowded; ++k)
-      crowded = (x.col(outside[k]) - x.col(c)).squaredNorm() < r * r;
+      crowded = (placed(outside[k]) - p).squaredNorm() < r * r;
     if (crowded) {
       gone[static_cast<std::size_t>(c)] = 1;
     } else {
       outside.push_back(c);
       out.emitted.push_back(c);
+      at.push_back(p);
     }
   }
+  out.emitted_at.resize(2, static_cast<Eigen::Index>(at.size()));
+  for (std::size_t k = 0; k < at.size(); ++k) out.emitted_at.col(static_cast<Eigen::Index>(k)) = at[k];
   for (Eigen::Index a = 0; a < n; ++a)
     if (gone[static_cast<std::size_t>(a)]) out.change.removed.push_back(static_cast<int>(a));
   // The zone's nodes, their data the old cloud's interpolant.

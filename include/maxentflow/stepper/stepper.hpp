@@ -237,6 +237,10 @@ class Stepper {
     require(step_ == 0, "an Eulerian zone is set before the first step", "Stepper::set_eulerian_zone");
     require(!zone_, "the stepper has an Eulerian zone already", "Stepper::set_eulerian_zone");
     zone.validate("Stepper::set_eulerian_zone");
+    require(zone.tool < static_cast<int>(contact_.size()),
+            detail::cat("the Eulerian zone moves with tool ", zone.tool, " but the stepper has ", contact_.size(),
+                        " tools (add the tool first)"),
+            "Stepper::set_eulerian_zone");
     Mesh m(prm_.mesh);
     m.build(zone.nodes);
     zone_h0_ = m.h();
@@ -822,12 +826,16 @@ class Stepper {
     mesh.build(x_);
     bool zone_active = false;
     zone_held_.clear();  // known only for a zone put back this step
-    if (zone_ && zone_filled(mesh, *zone_, zone_h0_)) {
+    std::optional<EulerianZone> zone;  // where it is now
+    if (zone_)
+      zone = zone_->tool < 0 ? *zone_
+                             : zone_->translated(contact_.tools()[static_cast<std::size_t>(zone_->tool)].displacement());
+    if (zone && zone_filled(mesh, *zone, zone_h0_)) {
       typename Basis::params bp;
       bp.gamma = prm_.gamma;
       bp.tol0 = prm_.tol0;
       const Basis old(x_, mesh.h(), bp);
-      ZoneUpdate z = plan_zone_update(mesh, old, *zone_, fields_.flat(k_.zone), fields_.flat(k_.h0), zone_h0_,
+      ZoneUpdate z = plan_zone_update(mesh, old, *zone, fields_.flat(k_.zone), fields_.flat(k_.h0), zone_h0_,
                                       [this](const Eigen::Vector2d& p) { return contact_.admissible(p); });
       zone_active = z.active;
       rec.zone_active = z.active;
@@ -860,7 +868,10 @@ class Stepper {
             zone_held_[static_cast<std::size_t>(id - 1)] = contact_flag_[static_cast<std::size_t>(a)];
             back.emplace_back(static_cast<int>(a), static_cast<int>(first + id - 1));
           }
-        for (int a : z.emitted) fields_.flat(k_.zone)(a) = 0.0;  // the material's now
+        for (std::size_t k = 0; k < z.emitted.size(); ++k) {
+          fields_.flat(k_.zone)(z.emitted[k]) = 0.0;  // the material's now
+          x_.col(z.emitted[k]) = z.emitted_at.col(static_cast<Eigen::Index>(k));
+        }
         apply(z.change, back);
         auto coef = fields_.flat(k_.coef);
         for (Eigen::Index k = 0; k < T; ++k)
@@ -882,7 +893,7 @@ class Stepper {
       NodeAdaptation a = plan_node_adaptation(mesh, fields_.flat(k_.h0), prm_.adapt, admissible);
       if (prm_.adapt.corner_nodes)
         add_corner_nodes(mesh, fields_.flat(k_.h0), prm_.adapt, contact_.convex_corners(), a);
-      if (zone_active) outside_zone(a);
+      if (zone_active) outside_zone(*zone, a);
       if (!a.empty()) {
         apply(a);
         rec.nodes_added += a.added();
@@ -894,14 +905,14 @@ class Stepper {
   }
   // Drops from a rezoning what touches the zone: removals of zone nodes,
   // insertions inside the zone.
-  void outside_zone(NodeAdaptation& a) const {
+  void outside_zone(const EulerianZone& zone, NodeAdaptation& a) const {
     std::erase_if(a.removed, [&](int r) { return fields_.flat(k_.zone)(r) > 0; });
     NodeAdaptation kept;
     kept.removed = std::move(a.removed);
     std::vector<Eigen::Vector2d> at;
     for (int i = 0; i < a.added(); ++i) {
       const auto k = static_cast<std::size_t>(i);
-      if (zone_->inside(a.inserted.col(i))) continue;
+      if (zone.inside(a.inserted.col(i))) continue;
       kept.parents.push_back(a.parents[k]);
       kept.weights.push_back(k < a.weights.size() ? a.weights[k] : std::vector<std::pair<int, double>>{});
       at.push_back(a.inserted.col(i));
