@@ -14,6 +14,7 @@
 using namespace maxentflow;
 
 int main(int argc, char** argv) {
+  set_blas_threads(1);  // as the examples: the cores go to the OpenMP loops
   examples::CuttingSetup s;
   if (argc > 1) s.nx = std::atoi(argv[1]);
   if (argc > 2) s.ny = std::atoi(argv[2]);

@@ -22,6 +22,7 @@
 using namespace maxentflow;
 
 int main(int argc, char** argv) {
+  set_blas_threads(1);  // as the examples: the cores go to the OpenMP loops
   // Numbers first, then the flags in any order.
   std::vector<std::string> num, flags;
   for (int i = 1; i < argc; ++i) (std::strncmp(argv[i], "--", 2) == 0 ? flags : num).emplace_back(argv[i]);

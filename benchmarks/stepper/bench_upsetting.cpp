@@ -61,6 +61,7 @@ int run(int steps, const char* solver, bool peer) {
 }
 
 int main(int argc, char** argv) {
+  set_blas_threads(1);  // as the examples: the cores go to the OpenMP loops
   const int steps = argc > 1 ? std::atoi(argv[1]) : 100;
   const std::string solver = argc > 2 ? argv[2] : "gmres";
   const bool peer = !(argc > 3 && std::string(argv[3]) == "--no-peer");

@@ -208,6 +208,7 @@ int main(int argc, char** argv) {
   app.add_option("--check", check_tol, "Exit 1 if max |u_h - u| / max u on the profile exceeds TOL")
       ->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
+  set_blas_threads(1);  // the cores go to the OpenMP loops (parallel.hpp)
 
   try {
     const fs::path out(out_dir);

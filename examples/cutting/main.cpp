@@ -190,6 +190,7 @@ int main(int argc, char** argv) {
   Options o;
   add_options(app, o);
   CLI11_PARSE(app, argc, argv);
+  set_blas_threads(1);  // the cores go to the OpenMP loops (parallel.hpp)
   if (o.restart.restarting()) o.out = o.restart.dir;
   const double h = o.s.spacing();
   if (!(o.s.t0 < 0.5 * o.s.height)) {

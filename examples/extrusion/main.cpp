@@ -436,6 +436,7 @@ int main(int argc, char** argv) {
   Options o;
   add_options(app, s, o);
   CLI11_PARSE(app, argc, argv);
+  set_blas_threads(1);  // the cores go to the OpenMP loops (parallel.hpp)
   s.node_update = o.node_update == "ab2" ? NodeUpdate::adams_bashforth2 : NodeUpdate::euler;
   s.law = o.friction.law(s.V);
   if (o.restart.restarting()) o.out = o.restart.dir;

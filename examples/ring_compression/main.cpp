@@ -195,6 +195,7 @@ int main(int argc, char** argv) {
   Options o;
   add_options(app, o);
   CLI11_PARSE(app, argc, argv);
+  set_blas_threads(1);  // the cores go to the OpenMP loops (parallel.hpp)
   if (!(o.inner < o.outer)) {
     std::cerr << "ring_compression: --inner " << o.inner << " must be below --outer " << o.outer << "\n";
     return 2;

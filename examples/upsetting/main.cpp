@@ -107,6 +107,7 @@ int main(int argc, char** argv) {
   Options o;
   add_options(app, o);
   CLI11_PARSE(app, argc, argv);
+  set_blas_threads(1);  // the cores go to the OpenMP loops (parallel.hpp)
   const bool axi = !o.plane_strain;
   if (o.restart.restarting()) o.out = o.restart.dir;
   if (!(o.steps * o.dt * o.V < o.height)) {

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include <Eigen/SparseLU>
+#include <dlfcn.h>
 
 #include "../support/flow_problems.hpp"
 
@@ -254,6 +255,27 @@ TEST_CASE("results do not depend on the thread count", "[flow][solver]") {
   CHECK((X1 - X2).norm() <= 1e-12 * X1.norm());
 }
 
+TEST_CASE("the BLAS thread count is set where the BLAS is OpenBLAS; results do not depend on it",
+          "[flow][solver]") {
+  using Getter = int (*)();
+  void* get = dlsym(RTLD_DEFAULT, "openblas_get_num_threads");
+  if (!get) {
+    CHECK(!set_blas_threads(1));  // no OpenBLAS in this process: nothing to set
+    return;
+  }
+  const int before = reinterpret_cast<Getter>(get)();
+  Eigen::VectorXd X1, X2;
+  for (int n : {1, 2}) {
+    REQUIRE(set_blas_threads(n));
+    CHECK(reinterpret_cast<Getter>(get)() == n);
+    auto P = compression(0.2);
+    NonlinearSolver<> s;
+    s.solve(*P.system, n == 1 ? X1 : X2);
+  }
+  set_blas_threads(before);
+  CHECK((X1 - X2).norm() <= 1e-10 * X1.norm());
+}
+
 TEST_CASE("an unconstrained rigid-body mode fails loudly", "[flow][solver]") {
   // Only the top plate: the block can slide sideways.
   FlowProblem<NortonHoff> P(block_nodes(6, 6, 1, 1, false), Geometry::plane_strain, NortonHoff());
@@ -276,6 +298,58 @@ TEST_CASE("a solve that cannot converge in the allowed iterations throws with it
   } catch (const Error& e) {
     CHECK_THAT(std::string(e.what()), Catch::Contains("no convergence") && Catch::Contains("picard"));
   }
+}
+
+namespace {
+// FlowSystem with Newton's matrix negated: every Newton direction climbs.
+struct ClimbingNewton {
+  FlowSystem<NortonHoff>& s;
+  int size() { return s.size(); }
+  long structure_generation() { return s.structure_generation(); }
+  void assemble(const Eigen::VectorXd& X, Linearization k, SystemPattern::Matrix& A, Eigen::VectorXd& R) {
+    s.assemble(X, k, A, R);
+    if (k == Linearization::newton) A = -A;
+  }
+  void residual(const Eigen::VectorXd& X, Eigen::VectorXd& R) { s.residual(X, R); }
+  double relative_residual(const Eigen::VectorXd& R) const { return s.relative_residual(R); }
+  double velocity_norm(const Eigen::VectorXd& X) const { return s.velocity_norm(X); }
+};
+}  // namespace
+
+TEST_CASE("a Newton that keeps failing: Picard runs longer before each try, the solve stops at the fourth",
+          "[flow][solver]") {
+  auto P = compression(0.2);
+  ClimbingNewton sys{*P.system};
+  NonlinearSolverParams prm;
+  NonlinearSolver<> solver(prm);
+  Eigen::VectorXd X;
+  try {
+    solver.solve(sys, X);
+    FAIL("no exception");
+  } catch (const Error& e) {
+    CHECK_THAT(std::string(e.what()), Catch::Contains("Newton failed 4 times"));
+  }
+  // Never stopped: Picard converges alone, Newton tried after 1, 2, 4, ...
+  // Picard iterations (one each before: the alternation this rule ends).
+  prm.max_newton_failures = 0;
+  prm.max_iterations = 200;  // Picard alone: ~0.77 a step
+  NonlinearSolver<> patient(prm);
+  X.resize(0);
+  const SolveReport rep = patient.solve(sys, X);
+  REQUIRE(rep.converged);
+  std::vector<int> runs;  // Picard iterations before each Newton try after a failure
+  int run = 0, failures = 0;
+  for (const auto& h : rep.history) {
+    if (h.kind == Linearization::picard) {
+      ++run;
+      continue;
+    }
+    CHECK(h.step == 0.0);  // each try fails
+    if (failures++ > 0) runs.push_back(run);
+    run = 0;
+  }
+  REQUIRE(runs.size() >= 2);
+  for (std::size_t k = 0; k < runs.size(); ++k) CHECK(runs[k] >= (1 << k));
 }
 
 namespace {

@@ -140,6 +140,14 @@ struct NonlinearSolverParams {
   /// the residual faster than the tangent follows. 0: never.
   int newton_stall_iterations = 3;
   double newton_stall_step = 1.0 / 16;
+  /// After Newton's k-th failed line search (or stall) in a solve, Picard
+  /// takes 2^(k-1) iterations before Newton is tried again, and the solve
+  /// stops (Error) at the max_newton_failures-th, rather than alternate one
+  /// Picard iteration with a failing Newton one up to max_iterations: where
+  /// Newton keeps failing, Picard alone converges too slowly to finish (E3:
+  /// 30 failures, 60 iterations, 90 s, then the step's retry at dt / 2
+  /// converged in 18 iterations). 0: never stop.
+  int max_newton_failures = 4;
   /// Krylov policies: solve each linearization only as far as the outer
   /// iteration can use (inexact Newton forcing term, Eisenstat-Walker style):
   /// |R + A dx| <= eta |R| with eta = clamp(max(res, 0.5 residual_tol / res),
@@ -279,6 +287,7 @@ class NonlinearSolver {
     if constexpr (SteerableKrylovSolver<Linear>)
       fallbacks_before = linear_.direct_fallbacks() + picard_linear_.direct_fallbacks();
     bool full_newton_step = false;
+    int newton_failures = 0, picard_due = 0;  // failed or stalled Newton phases; Picard iterations before the next
     int short_steps = 0;  // Newton steps in a row at or below newton_stall_step
     double increment = std::numeric_limits<double>::infinity();
     Eigen::VectorXd R, dx;
@@ -333,6 +342,7 @@ class NonlinearSolver {
         rep.history.push_back({it, kind, res, 0.0, 0.0, linear_its});
         ++rep.newton;
         if (prm_.log) *prm_.log << "  newton line search failed; back to picard\n";
+        newton_failed(++newton_failures, picard_due, rep);
         phase = Linearization::picard;
         picard_since_switch_ = 0;
         full_newton_step = false;
@@ -354,13 +364,14 @@ class NonlinearSolver {
       //    stalled Newton hands back.
       if (prm_.newton_stall_iterations > 0 && short_steps >= prm_.newton_stall_iterations) {
         if (prm_.log) *prm_.log << "  newton stalled (" << short_steps << " short steps); back to picard\n";
+        newton_failed(++newton_failures, picard_due, rep);
         phase = Linearization::picard;
         picard_since_switch_ = 0;
         short_steps = 0;
         continue;
       }
       if (phase == Linearization::picard) ++picard_since_switch_;
-      if (phase == Linearization::picard && prm_.newton &&
+      if (phase == Linearization::picard && prm_.newton && picard_since_switch_ >= picard_due &&
           (increment < prm_.switch_increment || picard_since_switch_ >= prm_.max_picard))
         phase = Linearization::newton;
     }
@@ -375,6 +386,14 @@ class NonlinearSolver {
   }
 
   using clock = std::chrono::steady_clock;
+  // Newton failed (line search or stall) for the k-th time in this solve.
+  void newton_failed(int k, int& picard_due, const SolveReport& rep) const {
+    if (prm_.max_newton_failures > 0 && k >= prm_.max_newton_failures)
+      throw Error(detail::cat("Newton failed ", k, " times (line search or stall; residual ", rep.residual,
+                              "); history:\n", rep.log()),
+                  "NonlinearSolver::solve");
+    picard_due = 1 << std::min(k - 1, 20);
+  }
   // A start of another size: cut, or padded with zeros.
   static void fit_start(Eigen::VectorXd& X, int n) {
     if (X.size() == n) return;
@@ -542,10 +561,11 @@ class NonlinearSolver {
     const bool newton = kind == Linearization::newton;
     Linear& L = newton ? linear_ : picard_linear_;
     KeptLuState& st = newton ? newton_lu_ : picard_lu_;
-    auto refactor = [&](const char* why, bool exact = false) {
+    // full: of Newton's whole tangent even where its LU is of newton_symmetric's matrix.
+    auto refactor = [&](const char* why, bool exact = false, bool full = false) {
       if (prm_.log) *prm_.log << "  kept " << (newton ? "newton" : "picard") << " LU made: " << why << "\n";
       auto t0 = clock::now();
-      const bool symmetric_newton = newton && symmetric_newton_lu(sys);
+      const bool symmetric_newton = newton && !full && symmetric_newton_lu(sys);
       Eigen::VectorXd R2;
       if (symmetric_newton) {
         if (!symmetric_assembled_) sys.assemble(X, Linearization::newton_symmetric, S_, R2);
@@ -618,6 +638,18 @@ class NonlinearSolver {
         dx = L.solve_kept(op, -R, max_its);
         linear_its += L.last_iterations();
       }
+    }
+    // A fresh double-precision LU of newton_symmetric's matrix that leaves
+    // GMRES short: d tau / d v, which that matrix leaves out, is no longer
+    // small (seen on E3 next to the tool's tip, where the direction then
+    // failed its line search step after step). The LU of the whole tangent.
+    if (newton && !L.converged() && symmetric_newton_lu(sys)) {
+      rep.solve_seconds += seconds(t0);
+      refactor("symmetric part short", true, true);
+      fresh = true;
+      t0 = clock::now();
+      dx = L.solve_kept(op, -R, max_its);
+      linear_its += L.last_iterations();
     }
     // The LU's age: iterations beyond those of its first solve.
     if (fresh) {

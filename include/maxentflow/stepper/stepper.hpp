@@ -854,7 +854,8 @@ class Stepper {
         // values (the interpolant smooths them across the die corner).
         const Eigen::Index T = zone_->nodes.cols(), n_old = x_.cols();
         Eigen::Matrix3Xd own = Eigen::Matrix3Xd::Constant(3, T, std::numeric_limits<double>::quiet_NaN());
-        Eigen::Matrix2Xd own_v(2, T);
+        Eigen::Matrix3Xd own_last(3, T);
+        Eigen::Matrix2Xd own_v(2, T), own_v_last(2, T);
         zone_held_.assign(static_cast<std::size_t>(T), -1);
         // The zone node that comes back is the one that left: its contact
         // multipliers carry over (where it was not emitted into the material),
@@ -865,6 +866,8 @@ class Stepper {
           if (const auto id = static_cast<Eigen::Index>(fields_.flat(k_.zone)(a)); id > 0) {
             own.col(id - 1) = fields_[k_.zone_start].col(a);
             own_v.col(id - 1) = fields_[k_.velocity].col(a);
+            own_last.col(id - 1) = fields_[k_.coef_last].col(a);
+            own_v_last.col(id - 1) = fields_[k_.velocity_last].col(a);
             zone_held_[static_cast<std::size_t>(id - 1)] = contact_flag_[static_cast<std::size_t>(a)];
             back.emplace_back(static_cast<int>(a), static_cast<int>(first + id - 1));
           }
@@ -878,6 +881,8 @@ class Stepper {
           if (own.col(k).allFinite()) {
             coef.template segment<3>(DofLayout::per_node * (x_.cols() - T + k)) = own.col(k);
             fields_[k_.velocity].col(x_.cols() - T + k) = own_v.col(k);
+            fields_[k_.coef_last].col(x_.cols() - T + k) = own_last.col(k);
+            fields_[k_.velocity_last].col(x_.cols() - T + k) = own_v_last.col(k);
           }
         // Counted as the node count's change: the zone's nodes come back every step.
         const auto removed = static_cast<Eigen::Index>(z.change.removed.size());
