@@ -155,14 +155,20 @@ struct CountingSystem {
 };
 static_assert(MatrixFreePicardSystem<CountingSystem>);
 static_assert(SymmetricSystem<CountingSystem>);
+
+// compression(0.2) solved by the direct policy: the Krylov tests' reference.
+Eigen::VectorXd direct_compression() {
+  auto P = compression(0.2);
+  Eigen::VectorXd X;
+  NonlinearSolver<> direct;
+  REQUIRE(direct.solve(*P.system, X).converged);
+  return X;
+}
 }  // namespace
 
 TEST_CASE("warm-started Picard iterations that a kept LU serves assemble no matrix; the same solution",
           "[flow][solver][gmres]") {
-  auto Pd = compression(0.2);
-  Eigen::VectorXd X_direct;
-  NonlinearSolver<> direct;
-  REQUIRE(direct.solve(*Pd.system, X_direct).converged);
+  const Eigen::VectorXd X_direct = direct_compression();
 
   NonlinearSolverParams prm;
   prm.newton_from_warm_start = false;  // as the extrusion and cutting examples: Picard first
@@ -190,10 +196,9 @@ TEST_CASE("warm-started Picard iterations that a kept LU serves assemble no matr
 
 TEST_CASE("Newton with the kept LU: the direct solution; the LU kept for one layout, made again for another",
           "[flow][solver][gmres]") {
-  Eigen::VectorXd X_direct, X_kept;
-  auto P0 = compression(0.2);
+  const Eigen::VectorXd X_direct = direct_compression();
+  Eigen::VectorXd X_kept;
   NonlinearSolver<> direct;
-  REQUIRE(direct.solve(*P0.system, X_direct).converged);
 
   NonlinearSolver<GmresSolver<>> s;  // kept_lu on by default
   auto P1 = compression(0.2);
@@ -239,10 +244,8 @@ TEST_CASE("Newton with the kept LU: the direct solution; the LU kept for one lay
 
 TEST_CASE("a kept Newton LU of the symmetric part that leaves GMRES short: the LU of the whole tangent",
           "[flow][solver][gmres]") {
-  Eigen::VectorXd X_direct, X;
-  auto P0 = compression(0.2);
-  NonlinearSolver<> direct;
-  REQUIRE(direct.solve(*P0.system, X_direct).converged);
+  const Eigen::VectorXd X_direct = direct_compression();
+  Eigen::VectorXd X;
   // One GMRES iteration a try: an LU of newton_symmetric's matrix (d tau / d v
   // left out) cannot bring it to the tolerance, the whole tangent's can.
   std::ostringstream log;
