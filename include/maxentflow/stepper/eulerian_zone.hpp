@@ -135,7 +135,11 @@ struct ZoneUpdate {
   NodeAdaptation change;     ///< removed: old nodes; inserted: the zone's nodes, in order, with weights
   std::vector<int> emitted;  ///< old zone nodes that stay in the material, outside the zone
   Eigen::Matrix2Xd emitted_at;  ///< where each emitted node goes (EulerianZone::emit_ahead)
+  /// Per emitted node, the old cloud's basis at emitted_at, (old node, value)
+  /// (empty where the basis failed: the node keeps its own data).
+  std::vector<std::vector<std::pair<int, double>>> emitted_weights;
   int fallbacks = 0;         ///< zone nodes whose data is the nearest old node's (the basis failed there)
+  int emitted_fallbacks = 0;  ///< emitted nodes that keep their own data (the basis failed there)
 };
 
 /// Whether p lies in the region the mesh's boundary loops enclose (even-odd
@@ -161,6 +165,21 @@ bool zone_filled(const Mesh& mesh, const EulerianZone& zone, const Eigen::Vector
   for (Eigen::Index t = 0; t < zone.nodes.cols(); ++t)
     if (!in_material(mesh, zone.nodes.col(t), zone.fill_tol_of(t) * h0_zone(t))) return false;
   return true;
+}
+
+/// The basis's nonzero values at p as (node, value), or none where it fails
+/// there (p outside the cloud's hull).
+template <class Basis>
+std::vector<std::pair<int, double>> weights_at(const Basis& basis, const Eigen::Vector2d& p) {
+  std::vector<std::pair<int, double>> w;
+  try {
+    const auto v = basis.evaluate(p, false);
+    for (std::size_t j = 0; j < v.node.size(); ++j)
+      if (v.p[j] != 0.0) w.emplace_back(v.node[j], v.p[j]);
+  } catch (const Error&) {
+    w.clear();  // the caller falls back to a node's own data and counts it
+  }
+  return w;
 }
 
 /// Plans the zone's rezoning of the cloud of `mesh`: zone_id(a) is the zone
@@ -223,6 +242,11 @@ ZoneUpdate plan_zone_update(const Mesh& mesh, const Basis& basis, const Eulerian
       crowded = d.norm() == 0.0 || zone.inside(p) || !in_material(mesh, p, zone.fill_tol * h0(c));
     }
     crowded = crowded || (admissible && !admissible(p));  // in a tool: put back, never carried on
+    // Nearer another zone node's place than its own: still in the zone's
+    // cloud (a node that left the region by a hair across a side the flow
+    // only grazes), and within keep_out of that node a step or two later.
+    for (Eigen::Index t = 0; t < T && !crowded; ++t)
+      crowded = (zone.nodes.col(t) - p).squaredNorm() < (home - p).squaredNorm();
     for (std::size_t k = 0; k < outside.size() && !crowded; ++k)
       crowded = (placed(outside[k]) - p).squaredNorm() < r * r;
     if (crowded) {
@@ -235,6 +259,11 @@ ZoneUpdate plan_zone_update(const Mesh& mesh, const Basis& basis, const Eulerian
   }
   out.emitted_at.resize(2, static_cast<Eigen::Index>(at.size()));
   for (std::size_t k = 0; k < at.size(); ++k) out.emitted_at.col(static_cast<Eigen::Index>(k)) = at[k];
+  out.emitted_weights.resize(at.size());
+  for (std::size_t k = 0; k < at.size(); ++k) {
+    out.emitted_weights[k] = weights_at(basis, at[k]);
+    if (out.emitted_weights[k].empty()) ++out.emitted_fallbacks;
+  }
   for (Eigen::Index a = 0; a < n; ++a)
     if (gone[static_cast<std::size_t>(a)]) out.change.removed.push_back(static_cast<int>(a));
   // The zone's nodes, their data the old cloud's interpolant.
@@ -244,15 +273,13 @@ ZoneUpdate plan_zone_update(const Mesh& mesh, const Basis& basis, const Eulerian
   for (Eigen::Index t = 0; t < T; ++t) {
     const Eigen::Vector2d p = zone.nodes.col(t);
     const auto k = static_cast<std::size_t>(t);
-    try {
-      const auto v = basis.evaluate(p, false);
-      for (std::size_t j = 0; j < v.node.size(); ++j)
-        if (v.p[j] != 0.0) out.change.weights[k].emplace_back(v.node[j], v.p[j]);
-      const auto top = std::max_element(v.p.begin(), v.p.end()) - v.p.begin();
-      out.change.parents[k] = {v.node[static_cast<std::size_t>(top)], v.node[static_cast<std::size_t>(top)]};
-    } catch (const Error&) {
+    out.change.weights[k] = weights_at(basis, p);
+    if (!out.change.weights[k].empty()) {
+      const auto top = std::max_element(out.change.weights[k].begin(), out.change.weights[k].end(),
+                                        [](const auto& a, const auto& b) { return a.second < b.second; });
+      out.change.parents[k] = {top->first, top->first};
+    } else {
       // Counted and reported by the caller: the nearest node's data instead.
-      out.change.weights[k].clear();
       ++out.fallbacks;
       Eigen::Index nearest = 0;
       (x.colwise() - p).colwise().squaredNorm().minCoeff(&nearest);

@@ -845,9 +845,10 @@ class Stepper {
         zone_logged_ = true;
       }
       if (z.active) {
-        if (z.fallbacks > 0)
+        if (z.fallbacks > 0 || z.emitted_fallbacks > 0)
           degrade(rec, 2, detail::cat("Eulerian zone: ", z.fallbacks,
-                                      " zone nodes took the nearest node's data (the old cloud's basis failed there)"));
+                                      " zone nodes took the nearest node's data and ", z.emitted_fallbacks,
+                                      " emitted nodes kept their own (the old cloud's basis failed there)"));
         // A zone node's next solve starts from its own last solution, not the
         // moved cloud's interpolant: at a fixed place a steady flow changes
         // little from step to step, and max-ent coefficients are not nodal
@@ -871,6 +872,17 @@ class Stepper {
             zone_held_[static_cast<std::size_t>(id - 1)] = contact_flag_[static_cast<std::size_t>(a)];
             back.emplace_back(static_cast<int>(a), static_cast<int>(first + id - 1));
           }
+        // An emitted node's start, its last coefficients and velocities: the
+        // old cloud's interpolant where it goes (its own are its zone place's,
+        // half a spacing upstream, and their extrapolation a jump).
+        for (int f : {k_.coef, k_.coef_last, k_.velocity, k_.velocity_last}) {
+          Eigen::MatrixXd& field = fields_[f];
+          Eigen::MatrixXd moved = Eigen::MatrixXd::Zero(field.rows(), static_cast<Eigen::Index>(z.emitted.size()));
+          for (std::size_t k = 0; k < z.emitted.size(); ++k)
+            for (const auto& [b, w] : z.emitted_weights[k]) moved.col(static_cast<Eigen::Index>(k)) += w * field.col(b);
+          for (std::size_t k = 0; k < z.emitted.size(); ++k)
+            if (!z.emitted_weights[k].empty()) field.col(z.emitted[k]) = moved.col(static_cast<Eigen::Index>(k));
+        }
         for (std::size_t k = 0; k < z.emitted.size(); ++k) {
           fields_.flat(k_.zone)(z.emitted[k]) = 0.0;  // the material's now
           x_.col(z.emitted[k]) = z.emitted_at.col(static_cast<Eigen::Index>(k));
