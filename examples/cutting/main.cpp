@@ -61,6 +61,8 @@ void add_options(CLI::App& app, Options& o) {
   app.add_option("--edge-radius", o.s.edge_radius, "Cutting edge radius (0: sharp)")->check(CLI::NonNegativeNumber);
   app.add_option("--gamma", o.s.gamma, "Max-ent locality gamma")->check(CLI::PositiveNumber);
   app.add_option("--tol0", o.s.tol0, "Max-ent support cut-off on the prior weight")->check(CLI::Range(1e-300, 0.5));
+  app.add_option("--tol", o.s.tol, "Newton's tolerance on the relative velocity increment and residual")
+      ->check(CLI::Range(1e-14, 1e-2));
   app.add_option("--Cs", o.s.Cs, "Stabilization constant Cs (Eq. 14)")->check(CLI::NonNegativeNumber);
   app.add_option("--alpha", o.s.alpha, "Alpha-shape parameter (circumradius <= alpha h)")->check(CLI::PositiveNumber);
   app.add_option("--mu0", o.s.mu0, "Norton-Hoff mu0")->check(CLI::PositiveNumber);
