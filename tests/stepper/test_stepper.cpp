@@ -991,12 +991,20 @@ TEST_CASE("Eulerian zone: slow outflow emitted ahead along its path; a zone tran
   // linear field exactly), not its zone place's half a spacing upstream.
   REQUIRE(ahead.emitted_weights.size() == 5);
   CHECK(ahead.emitted_fallbacks == 0);
+  Eigen::MatrixXd field(2, x.cols());  // a linear field and a constant one
+  for (Eigen::Index a = 0; a < x.cols(); ++a) field.col(a) << 1 + 2 * x(0, a) - 3 * x(1, a), 7.0;
+  const Eigen::MatrixXd before = field;
+  interpolate_emitted(ahead, field);
   for (std::size_t k = 0; k < 5; ++k) {
-    double f = 0;
-    for (const auto& [b, w] : ahead.emitted_weights[k]) f += w * (1 + 2 * x(0, b) - 3 * x(1, b));
     const Eigen::Vector2d p = ahead.emitted_at.col(static_cast<Eigen::Index>(k));
-    CHECK(f == Approx(1 + 2 * p.x() - 3 * p.y()).margin(1e-10));
+    const int a = ahead.emitted[k];
+    CHECK(field(0, a) == Approx(1 + 2 * p.x() - 3 * p.y()).margin(1e-10));
+    CHECK(field(1, a) == Approx(7.0).margin(1e-12));
+    CHECK(std::abs(before(0, a) - field(0, a)) > 0.5);  // half a spacing on: 2 * 0.4
   }
+  for (Eigen::Index a = 0; a < x.cols(); ++a)
+    if (std::find(ahead.emitted.begin(), ahead.emitted.end(), static_cast<int>(a)) == ahead.emitted.end())
+      CHECK(field.col(a) == before.col(a));  // other nodes keep theirs
   // A zone node that leaves the region by a hair where it is not the
   // outflow (a slot in the region's top row, as behind a cutting tool's tip
   // where the machined surface rises a little): sent on along its path it

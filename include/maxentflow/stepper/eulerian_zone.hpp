@@ -22,6 +22,10 @@
 //    emit_surface_spacing) times its spacing and it is in no tool; else it
 //    goes:
 //    the material leaving the zone gets nodes at about the zone's spacing;
+//    an emitted node's data is the old cloud's interpolant where it goes;
+//  - a zone node whose emission point lies nearer another zone node's place
+//    than its own goes (it left the region by a hair across a side the flow
+//    only grazes, and would be within keep_out of that node a step later);
 //  - the zone's nodes come back at their places, their data (velocity and
 //    pressure coefficients as the next solve's start, effective strain and
 //    the fields the nodes carry) the old cloud's max-ent interpolant there.
@@ -141,6 +145,17 @@ struct ZoneUpdate {
   int fallbacks = 0;         ///< zone nodes whose data is the nearest old node's (the basis failed there)
   int emitted_fallbacks = 0;  ///< emitted nodes that keep their own data (the basis failed there)
 };
+
+/// Sets each emitted node's column of a per-node field (one column per old
+/// node) to the old cloud's interpolant where the node goes; where the basis
+/// failed (no weights) the node keeps its own.
+inline void interpolate_emitted(const ZoneUpdate& z, Eigen::MatrixXd& field) {
+  Eigen::MatrixXd moved = Eigen::MatrixXd::Zero(field.rows(), static_cast<Eigen::Index>(z.emitted.size()));
+  for (std::size_t k = 0; k < z.emitted.size(); ++k)
+    for (const auto& [b, w] : z.emitted_weights[k]) moved.col(static_cast<Eigen::Index>(k)) += w * field.col(b);
+  for (std::size_t k = 0; k < z.emitted.size(); ++k)
+    if (!z.emitted_weights[k].empty()) field.col(z.emitted[k]) = moved.col(static_cast<Eigen::Index>(k));
+}
 
 /// Whether p lies in the region the mesh's boundary loops enclose (even-odd
 /// rule), or within tol of a boundary segment.

@@ -875,14 +875,7 @@ class Stepper {
         // An emitted node's start, its last coefficients and velocities: the
         // old cloud's interpolant where it goes (its own are its zone place's,
         // half a spacing upstream, and their extrapolation a jump).
-        for (int f : {k_.coef, k_.coef_last, k_.velocity, k_.velocity_last}) {
-          Eigen::MatrixXd& field = fields_[f];
-          Eigen::MatrixXd moved = Eigen::MatrixXd::Zero(field.rows(), static_cast<Eigen::Index>(z.emitted.size()));
-          for (std::size_t k = 0; k < z.emitted.size(); ++k)
-            for (const auto& [b, w] : z.emitted_weights[k]) moved.col(static_cast<Eigen::Index>(k)) += w * field.col(b);
-          for (std::size_t k = 0; k < z.emitted.size(); ++k)
-            if (!z.emitted_weights[k].empty()) field.col(z.emitted[k]) = moved.col(static_cast<Eigen::Index>(k));
-        }
+        for (int f : {k_.coef, k_.coef_last, k_.velocity, k_.velocity_last}) interpolate_emitted(z, fields_[f]);
         for (std::size_t k = 0; k < z.emitted.size(); ++k) {
           fields_.flat(k_.zone)(z.emitted[k]) = 0.0;  // the material's now
           x_.col(z.emitted[k]) = z.emitted_at.col(static_cast<Eigen::Index>(k));
