@@ -9,6 +9,7 @@
 #include <cstdlib>
 
 #include "cutting/cutting_case.hpp"
+#include <maxentflow/solver/blas_gemv_forward.hpp>  // this program's one translation unit: MUMPS's one-column solves by GEMV
 #include "stepper/step_totals.hpp"
 
 using namespace maxentflow;
@@ -34,9 +35,9 @@ int main(int argc, char** argv) {
       "BENCH cutting nodes_start=%d nodes_end=%ld nodes_max=%d nodes_added=%d nodes_removed=%d steps=%d completed=%d "
       "threads=%d total_s=%.3f per_step_s=%.4f mesh_s=%.3f basis_s=%.3f solve_s=%.3f assembly_s=%.3f "
       "factorization_s=%.3f linear_s=%.3f post_s=%.3f picard=%d newton=%d krylov=%d max_krylov_per_solve=%d "
-      "direct_fallbacks=%d retried_steps=%d target_s=120\n",
+      "direct_fallbacks=%d retried_steps=%d gemv_forwards=%lld target_s=120\n",
       s.nx * s.ny, static_cast<long>(sim.nodes().cols()), T.nodes_max, T.added, T.removed, steps, done,
       max_threads(), total, total / std::max(1, done), T.mesh, T.basis, T.solve, T.assembly, T.factorization,
-      T.linear, T.post, T.picard, T.newton, T.krylov, T.max_krylov, T.fallbacks, T.retried);
+      T.linear, T.post, T.picard, T.newton, T.krylov, T.max_krylov, T.fallbacks, T.retried, blas_gemv_forwards());
   return done == steps ? 0 : 1;
 }

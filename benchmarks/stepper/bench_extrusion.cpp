@@ -16,6 +16,7 @@
 #include <cstring>
 
 #include "extrusion/extrusion_case.hpp"
+#include <maxentflow/solver/blas_gemv_forward.hpp>  // this program's one translation unit: MUMPS's one-column solves by GEMV
 #include "peer/peer.hpp"
 #include "stepper/step_totals.hpp"
 
@@ -55,10 +56,10 @@ int main(int argc, char** argv) {
   std::printf(
       "BENCH extrusion nodes=%d steps=%d completed=%d threads=%d total_s=%.3f per_step_s=%.4f "
       "mesh_s=%.3f basis_s=%.3f solve_s=%.3f assembly_s=%.3f factorization_s=%.3f linear_s=%.3f "
-      "post_s=%.3f output_s=%.3f picard=%d newton=%d krylov=%d preconditioner_updates=%d direct_fallbacks=%d max_krylov_per_solve=%d retried_steps=%d eulerian_zone=%d\n",
+      "post_s=%.3f output_s=%.3f picard=%d newton=%d krylov=%d preconditioner_updates=%d direct_fallbacks=%d max_krylov_per_solve=%d retried_steps=%d eulerian_zone=%d gemv_forwards=%lld\n",
       s.nx * s.ny, steps, done, max_threads(), total, total / std::max(1, done), T.mesh, T.basis, T.solve,
       T.assembly, T.factorization, T.linear, T.post, output, T.picard, T.newton, T.krylov, T.preconditioner_updates,
-      T.fallbacks, T.max_krylov, T.retried, sim.eulerian_zone() ? 1 : 0);
+      T.fallbacks, T.max_krylov, T.retried, sim.eulerian_zone() ? 1 : 0, blas_gemv_forwards());
   const bool peer = !flag("--no-peer");
   const double ps = peer ? bench::peer_step1_seconds(s.nx) : -1.0;
   if (ps > 0)

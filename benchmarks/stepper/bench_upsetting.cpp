@@ -13,6 +13,7 @@
 #include <string>
 
 #include <maxentflow/maxentflow.hpp>
+#include <maxentflow/solver/blas_gemv_forward.hpp>  // this program's one translation unit: MUMPS's one-column solves by GEMV
 
 #include "peer/peer.hpp"
 #include "stepper/step_totals.hpp"
@@ -51,9 +52,9 @@ int run(int steps, const char* solver, bool peer) {
   const bench::StepTotals T(sim.history());
   std::printf(
       "BENCH upsetting nodes=%d steps=%d threads=%d total_s=%.3f per_step_s=%.4f mesh_s=%.3f "
-      "basis_s=%.3f solve_s=%.3f (assembly_s=%.3f factorization_s=%.3f linear_s=%.3f) post_s=%.3f output_s=%.3f picard=%d newton=%d krylov=%d max_krylov_per_solve=%d direct_fallbacks=%d solver=%s\n",
+      "basis_s=%.3f solve_s=%.3f (assembly_s=%.3f factorization_s=%.3f linear_s=%.3f) post_s=%.3f output_s=%.3f picard=%d newton=%d krylov=%d max_krylov_per_solve=%d direct_fallbacks=%d solver=%s gemv_forwards=%lld\n",
       nx * ny, steps, max_threads(), total, total / steps, T.mesh, T.basis, T.solve, T.assembly, T.factorization,
-      T.linear, T.post, output, T.picard, T.newton, T.krylov, T.max_krylov, T.fallbacks, solver);
+      T.linear, T.post, output, T.picard, T.newton, T.krylov, T.max_krylov, T.fallbacks, solver, blas_gemv_forwards());
   const double ps = peer ? bench::peer_step1_seconds(32) : -1.0;
   if (ps > 0) std::printf("BENCH upsetting_vs_peer run_over_peer_step1=%.2f target=1\n", total / ps);
   std::filesystem::remove_all(dir);

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include <maxentflow/maxentflow.hpp>
+#include <maxentflow/solver/blas_gemv_forward.hpp>  // this program's one translation unit: MUMPS's one-column solves by GEMV
 
 #include "common/friction.hpp"
 #include "common/load_steadiness.hpp"

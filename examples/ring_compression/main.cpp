@@ -24,6 +24,7 @@
 #include <vector>
 
 #include <maxentflow/maxentflow.hpp>
+#include <maxentflow/solver/blas_gemv_forward.hpp>  // this program's one translation unit: MUMPS's one-column solves by GEMV
 
 #include "common/plotting.hpp"
 #include "common/restart.hpp"

@@ -16,6 +16,7 @@
 #include <sstream>
 
 #include <maxentflow/maxentflow.hpp>
+#include <maxentflow/solver/blas_gemv_forward.hpp>  // this program's one translation unit: MUMPS's one-column solves by GEMV
 
 #include "common/friction.hpp"
 #include "common/plotting.hpp"

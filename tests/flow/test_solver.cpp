@@ -4,13 +4,17 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <sstream>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
 #include <Eigen/SparseLU>
 #include <dlfcn.h>
+
+#include <maxentflow/solver/blas_gemv_forward.hpp>  // this test program's one translation unit that includes it
 
 #include "../support/flow_problems.hpp"
 
@@ -1220,4 +1224,76 @@ TEST_CASE("GMRES: the kept LU takes released and new constraint rows exactly", "
   // Its own layout again: the LU itself, no update.
   g.set_layout(saddle_layout(nf, kept_rows));
   CHECK(g.kept_updated_rows() == -1);
+}
+
+namespace {
+// C = alpha op(A) op(B) + beta C through the program's xGEMM (found as any
+// shared library finds it), against Eigen's product, for one-column and
+// two-column C.
+template <class T>
+void check_gemm(const char* name, bool forwarded_expected) {
+  using Mat = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>;
+  using Gemm = maxentflow::detail::Gemm<T>;
+  auto* gemm = reinterpret_cast<Gemm>(dlsym(RTLD_DEFAULT, name));
+  REQUIRE(gemm != nullptr);
+  const int m = 7, k = 5, lda = 9, ldb = 6, ldc = 8;
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (const int n : {1, 2})
+    for (const char ta : {'N', 'T'})
+      for (const char tb : {'N', 'T'})
+        for (const T beta : {T(0), T(0.5)}) {
+          // op(A) m x k stored in lda rows; op(B) k x n stored in ldb rows.
+          Mat A = Mat::NullaryExpr(lda, std::max(m, k), [&] { return T(u(rng)); });
+          Mat B = Mat::NullaryExpr(ldb, std::max(k, n), [&] { return T(u(rng)); });
+          Mat C = Mat::NullaryExpr(ldc, n, [&] { return T(u(rng)); });
+          const Mat opA = ta == 'N' ? Mat(A.topLeftCorner(m, k)) : Mat(A.topLeftCorner(k, m).transpose());
+          const Mat opB = tb == 'N' ? Mat(B.topLeftCorner(k, n)) : Mat(B.topLeftCorner(n, k).transpose());
+          const T alpha = T(-1.5);
+          Mat expected = alpha * opA * opB;
+          if (beta != T(0)) expected += beta * C.topRows(m);
+          if (beta == T(0)) C.topRows(m).setConstant(std::numeric_limits<T>::quiet_NaN());  // not to be read
+          const long long before = blas_gemv_forwards();
+          gemm(&ta, &tb, &m, &n, &k, &alpha, A.data(), &lda, B.data(), &ldb, &beta, C.data(), &ldc, 1, 1);
+          CHECK(blas_gemv_forwards() - before == (n == 1 && forwarded_expected ? 1 : 0));
+          const double tol = std::is_same_v<T, float> ? 1e-5 : 1e-13;
+          CHECK((C.topRows(m) - expected).template lpNorm<Eigen::Infinity>() <= tol);
+        }
+}
+}  // namespace
+
+TEST_CASE("BLAS: one-column GEMMs are made by GEMV, with GEMM's result", "[flow][solver][blas]") {
+  // The name every library of this program binds to is the program's own
+  // (blas_gemv_forward.hpp): else MUMPS's solves would bypass it.
+  CHECK(dlsym(RTLD_DEFAULT, "sgemm_") == reinterpret_cast<void*>(&sgemm_));
+  CHECK(dlsym(RTLD_DEFAULT, "dgemm_") == reinterpret_cast<void*>(&dgemm_));
+  check_gemm<float>("sgemm_", true);
+  check_gemm<double>("dgemm_", true);
+#ifdef MAXENTFLOW_HAVE_MUMPS
+  {  // MUMPS's one-right-hand-side solve of a 2-D Laplacian (fronts with
+     // contribution blocks) goes through it, and solves.
+    const int s = 40, n = s * s;
+    std::vector<Eigen::Triplet<double>> t;
+    for (int j = 0; j < s; ++j)
+      for (int i = 0; i < s; ++i) {
+        const int a = j * s + i;
+        t.emplace_back(a, a, 4.0);
+        if (i > 0) t.emplace_back(a, a - 1, -1.0);
+        if (i + 1 < s) t.emplace_back(a, a + 1, -1.0);
+        if (j > 0) t.emplace_back(a, a - s, -1.0);
+        if (j + 1 < s) t.emplace_back(a, a + s, -1.0);
+      }
+    Eigen::SparseMatrix<double, Eigen::ColMajor, int> L(n, n);
+    L.setFromTriplets(t.begin(), t.end());
+    L.makeCompressed();
+    const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(n, -1.0, 2.0);
+    BasicMumpsSolver<double> mumps;
+    mumps.analyze(L);
+    mumps.factorize(L);
+    const long long before = blas_gemv_forwards();
+    const Eigen::VectorXd x = mumps.solve(b);
+    CHECK(blas_gemv_forwards() > before);
+    CHECK((L * x - b).norm() <= 1e-12 * b.norm());
+  }
+#endif
 }
