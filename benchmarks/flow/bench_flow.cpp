@@ -29,13 +29,13 @@
 // Usage: bench_flow [max_N [min_N]]   (sizes 1024, 4096, 16384, 65536 within
 // [min_N, max_N]; default max_N 65536; the ctest runs 16384)
 #include <maxentflow/basis/maxent_basis.hpp>
-#include <maxentflow/solver/blas_gemv_forward.hpp>  // this program's one translation unit: MUMPS's one-column solves by GEMV
 #include <maxentflow/core/parallel.hpp>
 #include <maxentflow/flow/constraints.hpp>
 #include <maxentflow/flow/flow_discretization.hpp>
 #include <maxentflow/flow/flow_system.hpp>
 #include <maxentflow/material/norton_hoff.hpp>
 #include <maxentflow/mesh/integration_mesh.hpp>
+#include <maxentflow/solver/blas_gemv_forward.hpp>  // this program's one translation unit: MUMPS's one-column solves by GEMV
 #include <maxentflow/solver/nonlinear_solver.hpp>
 #include <maxentflow/stepper/stepper.hpp>
 

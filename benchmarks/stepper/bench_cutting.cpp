@@ -8,8 +8,9 @@
 #include <cstdio>
 #include <cstdlib>
 
-#include "cutting/cutting_case.hpp"
 #include <maxentflow/solver/blas_gemv_forward.hpp>  // this program's one translation unit: MUMPS's one-column solves by GEMV
+
+#include "cutting/cutting_case.hpp"
 #include "stepper/step_totals.hpp"
 
 using namespace maxentflow;

@@ -15,8 +15,9 @@
 
 #include <cstring>
 
-#include "extrusion/extrusion_case.hpp"
 #include <maxentflow/solver/blas_gemv_forward.hpp>  // this program's one translation unit: MUMPS's one-column solves by GEMV
+
+#include "extrusion/extrusion_case.hpp"
 #include "peer/peer.hpp"
 #include "stepper/step_totals.hpp"
 

@@ -26,7 +26,6 @@
 //     convergence.csv   h,l2_error for ny = 5, 9, 17, 33 (with --convergence)
 //     profile.png, convergence.png  drawn by plot_channel_flow.py (unless --no-plots)
 #include <maxentflow/basis/maxent_basis.hpp>
-#include <maxentflow/solver/blas_gemv_forward.hpp>  // this program's one translation unit: MUMPS's one-column solves by GEMV
 #include <maxentflow/flow/constraints.hpp>
 #include <maxentflow/flow/flow_discretization.hpp>
 #include <maxentflow/flow/flow_system.hpp>
@@ -34,6 +33,7 @@
 #include <maxentflow/io/vtk.hpp>
 #include <maxentflow/material/norton_hoff.hpp>
 #include <maxentflow/mesh/integration_mesh.hpp>
+#include <maxentflow/solver/blas_gemv_forward.hpp>  // this program's one translation unit: MUMPS's one-column solves by GEMV
 #include <maxentflow/solver/nonlinear_solver.hpp>
 
 #include "common/plotting.hpp"
