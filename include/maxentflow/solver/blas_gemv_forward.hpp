@@ -31,8 +31,9 @@ namespace maxentflow {
 namespace detail {
 
 template <class T>
-using Gemm = void (*)(const char*, const char*, const int*, const int*, const int*, const T*, const T*,
-                      const int*, const T*, const int*, const T*, T*, const int*, std::size_t, std::size_t);
+using Gemm = void (*)(const char*, const char*, const int*, const int*, const int*, const T*,
+                      const T*, const int*, const T*, const int*, const T*, T*, const int*,
+                      std::size_t, std::size_t);
 template <class T>
 using Gemv = void (*)(const char*, const int*, const int*, const T*, const T*, const int*, const T*,
                       const int*, const T*, T*, const int*, std::size_t);
@@ -49,7 +50,8 @@ inline std::atomic<long long>& gemv_forwards() {
 inline void* blas_routine(void* handle, const char* name) {
   void* f = dlsym(handle, name);
   if (f == nullptr) {
-    std::fprintf(stderr, "maxentflow (blas_gemv_forward.hpp): no BLAS %s in this program: %s\n", name, dlerror());
+    std::fprintf(stderr, "maxentflow (blas_gemv_forward.hpp): no BLAS %s in this program: %s\n",
+                 name, dlerror());
     std::abort();
   }
   return f;
@@ -59,9 +61,10 @@ inline void* blas_routine(void* handle, const char* name) {
 // beta C by GEMV (op(A) m x k; b B's column, or B's row where B is given
 // transposed). Other shapes go to the BLAS's GEMM.
 template <class T>
-void gemm_or_gemv(Gemm<T> gemm, Gemv<T> gemv, const char* ta, const char* tb, const int* m, const int* n,
-                  const int* k, const T* alpha, const T* a, const int* lda, const T* b, const int* ldb,
-                  const T* beta, T* c, const int* ldc, std::size_t lta, std::size_t ltb) {
+void gemm_or_gemv(Gemm<T> gemm, Gemv<T> gemv, const char* ta, const char* tb, const int* m,
+                  const int* n, const int* k, const T* alpha, const T* a, const int* lda,
+                  const T* b, const int* ldb, const T* beta, T* c, const int* ldc, std::size_t lta,
+                  std::size_t ltb) {
   if (*n != 1 || *m <= 0 || *k <= 0) {
     gemm(ta, tb, m, n, k, alpha, a, lda, b, ldb, beta, c, ldc, lta, ltb);
     return;
@@ -77,26 +80,41 @@ void gemm_or_gemv(Gemm<T> gemm, Gemv<T> gemv, const char* ta, const char* tb, co
 }  // namespace detail
 
 /// xGEMM calls with one column this program handed to xGEMV so far.
-inline long long blas_gemv_forwards() { return detail::gemv_forwards().load(std::memory_order_relaxed); }
+inline long long blas_gemv_forwards() {
+  return detail::gemv_forwards().load(std::memory_order_relaxed);
+}
 
 }  // namespace maxentflow
 
+// Exported even where the program is built with -fvisibility=hidden: the
+// shared libraries can only bind to a name in the dynamic symbol table.
+#if defined(__GNUC__)
+#define MAXENTFLOW_BLAS_ENTRY __attribute__((visibility("default")))
+#else
+#define MAXENTFLOW_BLAS_ENTRY
+#endif
+
 extern "C" {
 // Fortran BLAS interfaces (gfortran: the CHARACTER arguments' lengths last).
-void sgemm_(const char* ta, const char* tb, const int* m, const int* n, const int* k, const float* alpha,
-            const float* a, const int* lda, const float* b, const int* ldb, const float* beta, float* c,
-            const int* ldc, std::size_t lta, std::size_t ltb) {
+MAXENTFLOW_BLAS_ENTRY void sgemm_(const char* ta, const char* tb, const int* m, const int* n,
+                                  const int* k, const float* alpha, const float* a, const int* lda,
+                                  const float* b, const int* ldb, const float* beta, float* c,
+                                  const int* ldc, std::size_t lta, std::size_t ltb) {
   using namespace maxentflow::detail;
   static const auto gemm = reinterpret_cast<Gemm<float>>(blas_routine(RTLD_NEXT, "sgemm_"));
   static const auto gemv = reinterpret_cast<Gemv<float>>(blas_routine(RTLD_DEFAULT, "sgemv_"));
   gemm_or_gemv<float>(gemm, gemv, ta, tb, m, n, k, alpha, a, lda, b, ldb, beta, c, ldc, lta, ltb);
 }
-void dgemm_(const char* ta, const char* tb, const int* m, const int* n, const int* k, const double* alpha,
-            const double* a, const int* lda, const double* b, const int* ldb, const double* beta, double* c,
-            const int* ldc, std::size_t lta, std::size_t ltb) {
+MAXENTFLOW_BLAS_ENTRY void dgemm_(const char* ta, const char* tb, const int* m, const int* n,
+                                  const int* k, const double* alpha, const double* a,
+                                  const int* lda, const double* b, const int* ldb,
+                                  const double* beta, double* c, const int* ldc, std::size_t lta,
+                                  std::size_t ltb) {
   using namespace maxentflow::detail;
   static const auto gemm = reinterpret_cast<Gemm<double>>(blas_routine(RTLD_NEXT, "dgemm_"));
   static const auto gemv = reinterpret_cast<Gemv<double>>(blas_routine(RTLD_DEFAULT, "dgemv_"));
   gemm_or_gemv<double>(gemm, gemv, ta, tb, m, n, k, alpha, a, lda, b, ldb, beta, c, ldc, lta, ltb);
 }
 }
+
+#undef MAXENTFLOW_BLAS_ENTRY
