@@ -188,6 +188,7 @@ double slope(const std::vector<double>& x, const std::vector<double>& y) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  set_blas_threads(1);  // as the examples: the cores go to the OpenMP loops
   const long max_n = argc > 1 ? std::atol(argv[1]) : 65536;
   const long min_n = argc > 2 ? std::atol(argv[2]) : 0;
   std::vector<double> ns;

@@ -198,6 +198,43 @@ TEST_CASE("warm-started Picard iterations that a kept LU serves assemble no matr
   }
 }
 
+TEST_CASE("iterations the linear-triangle companion serves are matrix-free: no matrix assembled, the same solution",
+          "[flow][solver][gmres]") {
+  const Eigen::VectorXd X_direct = direct_compression();
+  // Every iteration with the companion (as above kept_lu_max_unknowns); GMRES
+  // with at most `iterations` (2: it cannot converge, the direct fallback
+  // serves).
+  auto run = [&](bool matrix_free, int iterations, int& assemblies) {
+    NonlinearSolverParams prm;
+    prm.kept_lu = false;
+    prm.matrix_free_krylov = matrix_free;
+    NonlinearSolver<GmresSolver<>> s(prm);
+    s.linear_solver().parameters().restart = std::min(iterations, s.linear_solver().parameters().restart);
+    s.linear_solver().parameters().max_iterations = iterations;
+    auto P = compression(0.2);
+    CountingSystem sys{*P.system};
+    Eigen::VectorXd X;
+    const SolveReport r = s.solve(sys, X);
+    INFO(r.log());
+    REQUIRE(r.converged);
+    CHECK((X - X_direct).lpNorm<Eigen::Infinity>() <= 1e-6 * X_direct.lpNorm<Eigen::Infinity>());
+    assemblies = sys.assemblies;
+    return r;
+  };
+  for (const bool matrix_free : {true, false}) {
+    CAPTURE(matrix_free);
+    int assemblies = 0;
+    const SolveReport r = run(matrix_free, GmresParams{}.max_iterations, assemblies);
+    CHECK(r.newton >= 2);
+    CHECK(r.direct_fallbacks == 0);
+    CHECK(assemblies == (matrix_free ? 0 : r.picard + r.newton + 1));  // + the converged iterate's
+  }
+  int assemblies = 0;  // GMRES that cannot converge: the fallback assembles the matrix it needs
+  const SolveReport r = run(true, 2, assemblies);
+  CHECK(r.direct_fallbacks >= 1);
+  CHECK(assemblies >= 1);
+}
+
 TEST_CASE("Newton with the kept LU: the direct solution; the LU kept for one layout, made again for another",
           "[flow][solver][gmres]") {
   const Eigen::VectorXd X_direct = direct_compression();
@@ -1260,15 +1297,63 @@ void check_gemm(const char* name, bool forwarded_expected) {
           CHECK((C.topRows(m) - expected).template lpNorm<Eigen::Infinity>() <= tol);
         }
 }
+
+// The TRSM named `name`, against Eigen's triangular solve: B one column (side
+// L) or one row (side R) is forwarded to TRSV, two are not.
+template <class T>
+void check_trsm(const char* name) {
+  using Mat = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>;
+  using Trsm = maxentflow::detail::Trsm<T>;
+  auto* trsm = reinterpret_cast<Trsm>(dlsym(RTLD_DEFAULT, name));
+  REQUIRE(trsm != nullptr);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (const char side : {'L', 'R'})
+    for (const char uplo : {'U', 'L'})
+      for (const char ta : {'N', 'T'})
+        for (const char diag : {'N', 'U'})
+          for (const int cols : {1, 2})
+            for (const T alpha : {T(1), T(-1.5)}) {
+              CAPTURE(side, uplo, ta, diag, cols, alpha);
+              const int k = 7;  // op(A) k x k
+              const int m = side == 'L' ? k : cols, n = side == 'L' ? cols : k;
+              const int lda = 9, ldb = m + 2;
+              Mat A = Mat::NullaryExpr(lda, k, [&] { return T(u(rng)); });
+              for (int i = 0; i < k; ++i) A(i, i) = T(2.0 + std::abs(u(rng)));
+              Mat Tri = Mat::Zero(k, k);  // the triangle TRSM reads
+              for (int j = 0; j < k; ++j)
+                for (int i = 0; i < k; ++i)
+                  if (i == j) Tri(i, i) = diag == 'U' ? T(1) : A(i, i);
+                  else if ((uplo == 'U') == (i < j)) Tri(i, j) = A(i, j);
+              const Mat opA = ta == 'N' ? Tri : Mat(Tri.transpose());
+              Mat B = Mat::NullaryExpr(ldb, n, [&] { return T(u(rng)); });
+              const Mat B0 = B.topRows(m), pad = B.bottomRows(ldb - m);
+              // B op(A)^-1 = (op(A)^-T B^T)^T
+              const Mat expected = side == 'L' ? Mat(alpha * opA.partialPivLu().solve(B0))
+                                               : Mat(alpha * Mat(opA.transpose()).partialPivLu().solve(
+                                                                 Mat(B0.transpose())).transpose());
+              const long long before = blas_gemv_forwards();
+              trsm(&side, &uplo, &ta, &diag, &m, &n, &alpha, A.data(), &lda, B.data(), &ldb, 1, 1, 1, 1);
+              CHECK(blas_gemv_forwards() - before == (cols == 1 ? 1 : 0));
+              const double tol = std::is_same_v<T, float> ? 1e-5 : 1e-13;
+              CHECK((B.topRows(m) - expected).template lpNorm<Eigen::Infinity>() <= tol);
+              CHECK(B.bottomRows(ldb - m) == pad);  // the rows between B's and ldb are not B's
+            }
+}
 }  // namespace
 
-TEST_CASE("BLAS: one-column GEMMs are made by GEMV, with GEMM's result", "[flow][solver][blas]") {
+TEST_CASE("BLAS: one-column GEMMs and TRSMs are made by GEMV and TRSV, with their results", "[flow][solver][blas]") {
   // The name every library of this program binds to is the program's own
   // (blas_gemv_forward.hpp): else MUMPS's solves would bypass it.
   CHECK(dlsym(RTLD_DEFAULT, "sgemm_") == reinterpret_cast<void*>(&sgemm_));
   CHECK(dlsym(RTLD_DEFAULT, "dgemm_") == reinterpret_cast<void*>(&dgemm_));
   check_gemm<float>("sgemm_", true);
   check_gemm<double>("dgemm_", true);
+  // One-column triangular solves by TRSV, likewise.
+  CHECK(dlsym(RTLD_DEFAULT, "strsm_") == reinterpret_cast<void*>(&strsm_));
+  CHECK(dlsym(RTLD_DEFAULT, "dtrsm_") == reinterpret_cast<void*>(&dtrsm_));
+  check_trsm<float>("strsm_");
+  check_trsm<double>("dtrsm_");
 #ifdef MAXENTFLOW_HAVE_MUMPS
   {  // MUMPS's one-right-hand-side solve of a 2-D Laplacian (fronts with
      // contribution blocks) goes through it, and solves.

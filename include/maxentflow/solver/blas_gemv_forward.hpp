@@ -1,20 +1,23 @@
 // maxentflow: one-column matrix products (xGEMM with N = 1) handed to the
-// BLAS's matrix-vector product (xGEMV), for the kept LU's solves.
+// BLAS's matrix-vector product (xGEMV), and one-column triangular solves
+// (xTRSM) to xTRSV, for the sparse LUs' solves.
 //
 // Include this header in exactly one translation unit of a program (its
 // main.cpp, as the examples and benchmarks do); maxentflow.hpp does not
-// include it. It defines sgemm_ and dgemm_, which take the place of the
-// BLAS's own for the whole program (the dynamic linker binds the sparse
-// solvers' calls to the program's definition first) and pass every other
-// call on to the BLAS's.
+// include it. It defines sgemm_, dgemm_, strsm_ and dtrsm_, which take the
+// place of the BLAS's own for the whole program (the dynamic linker binds
+// the sparse solvers' calls to the program's definition first) and pass
+// every other call on to the BLAS's.
 //
 // Why: MUMPS, as Debian builds it (without MUMPS_USE_BLAS2), solves with one
-// right-hand side through xGEMM with N = 1, and OpenBLAS before 0.3.27 packs
-// each panel of the factors into a buffer before its kernel reads it: 2.5 times
-// the kernel's own time. A GMRES iteration on E3 (5k nodes, ~11.5M
-// single-precision factor entries) costs 7.1 ms with this header against
-// 11.1 ms without (docs/method.md, section 8). Results are those of the
-// BLAS's GEMV, equal to GEMM's up to the order of the sums.
+// right-hand side through xGEMM and xTRSM with N = 1, and OpenBLAS before
+// 0.3.27 packs each panel of the factors into a buffer before its kernel
+// reads it: 2.5 times the kernel's own time. A GMRES iteration on E3 (5k
+// nodes, ~11.5M single-precision factor entries) costs 7.1 ms with this
+// header against 11.1 ms without; a solve with the linear-triangle
+// companion's factors at 16k nodes 8.9 ms against 9.6 ms with the GEMM
+// forwarding alone (docs/method.md, section 8). Results are those of GEMV
+// and TRSV, equal to GEMM's and TRSM's up to the order of the sums.
 #pragma once
 
 #include <atomic>
@@ -77,9 +80,42 @@ void gemm_or_gemv(Gemm<T> gemm, Gemv<T> gemv, const char* ta, const char* tb, co
   gemv_forwards().fetch_add(1, std::memory_order_relaxed);
 }
 
+template <class T>
+using Trsm = void (*)(const char*, const char*, const char*, const char*, const int*, const int*,
+                      const T*, const T*, const int*, T*, const int*, std::size_t, std::size_t,
+                      std::size_t, std::size_t);
+template <class T>
+using Trsv = void (*)(const char*, const char*, const char*, const int*, const T*, const int*, T*,
+                      const int*, std::size_t, std::size_t, std::size_t);
+
+// B = alpha op(A)^-1 B (side L) or alpha B op(A)^-1 (side R) with B one
+// column (L) or one row (R): alpha B, then xTRSV, op transposed for a row
+// (B op(A)^-1 = (op(A)^-T B^T)^T). Other shapes go to the BLAS's TRSM.
+template <class T>
+void trsm_or_trsv(Trsm<T> trsm, Trsv<T> trsv, const char* side, const char* uplo, const char* ta,
+                  const char* diag, const int* m, const int* n, const T* alpha, const T* a,
+                  const int* lda, T* b, const int* ldb, std::size_t ls, std::size_t lu,
+                  std::size_t lt, std::size_t ld) {
+  const bool left = *side == 'L' || *side == 'l';
+  if ((left ? *n : *m) != 1 || *m <= 0 || *n <= 0) {
+    trsm(side, uplo, ta, diag, m, n, alpha, a, lda, b, ldb, ls, lu, lt, ld);
+    return;
+  }
+  const int len = left ? *m : *n, inc = left ? 1 : *ldb;
+  const auto step = static_cast<std::size_t>(inc);
+  if (*alpha != T(1))  // alpha 0: B = 0, A not read (TRSM's own rule)
+    for (std::size_t i = 0; i < static_cast<std::size_t>(len); ++i)
+      b[i * step] = *alpha == T(0) ? T(0) : *alpha * b[i * step];
+  if (*alpha == T(0)) return;
+  const bool plain = *ta == 'N' || *ta == 'n';
+  trsv(uplo, plain == left ? "N" : "T", diag, &len, a, lda, b, &inc, 1, 1, 1);
+  gemv_forwards().fetch_add(1, std::memory_order_relaxed);
+}
+
 }  // namespace detail
 
-/// xGEMM calls with one column this program handed to xGEMV so far.
+/// xGEMM and xTRSM calls with one column this program handed to xGEMV and
+/// xTRSV so far.
 inline long long blas_gemv_forwards() {
   return detail::gemv_forwards().load(std::memory_order_relaxed);
 }
@@ -114,6 +150,26 @@ MAXENTFLOW_BLAS_ENTRY void dgemm_(const char* ta, const char* tb, const int* m, 
   static const auto gemm = reinterpret_cast<Gemm<double>>(blas_routine(RTLD_NEXT, "dgemm_"));
   static const auto gemv = reinterpret_cast<Gemv<double>>(blas_routine(RTLD_DEFAULT, "dgemv_"));
   gemm_or_gemv<double>(gemm, gemv, ta, tb, m, n, k, alpha, a, lda, b, ldb, beta, c, ldc, lta, ltb);
+}
+MAXENTFLOW_BLAS_ENTRY void strsm_(const char* side, const char* uplo, const char* ta,
+                                  const char* diag, const int* m, const int* n, const float* alpha,
+                                  const float* a, const int* lda, float* b, const int* ldb,
+                                  std::size_t ls, std::size_t lu, std::size_t lt, std::size_t ld) {
+  using namespace maxentflow::detail;
+  static const auto trsm = reinterpret_cast<Trsm<float>>(blas_routine(RTLD_NEXT, "strsm_"));
+  static const auto trsv = reinterpret_cast<Trsv<float>>(blas_routine(RTLD_DEFAULT, "strsv_"));
+  trsm_or_trsv<float>(trsm, trsv, side, uplo, ta, diag, m, n, alpha, a, lda, b, ldb, ls, lu, lt,
+                      ld);
+}
+MAXENTFLOW_BLAS_ENTRY void dtrsm_(const char* side, const char* uplo, const char* ta,
+                                  const char* diag, const int* m, const int* n, const double* alpha,
+                                  const double* a, const int* lda, double* b, const int* ldb,
+                                  std::size_t ls, std::size_t lu, std::size_t lt, std::size_t ld) {
+  using namespace maxentflow::detail;
+  static const auto trsm = reinterpret_cast<Trsm<double>>(blas_routine(RTLD_NEXT, "dtrsm_"));
+  static const auto trsv = reinterpret_cast<Trsv<double>>(blas_routine(RTLD_DEFAULT, "dtrsv_"));
+  trsm_or_trsv<double>(trsm, trsv, side, uplo, ta, diag, m, n, alpha, a, lda, b, ldb, ls, lu, lt,
+                       ld);
 }
 }
 

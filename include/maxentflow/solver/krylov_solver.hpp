@@ -7,6 +7,7 @@
 #include <cmath>
 #include <concepts>
 #include <cstddef>
+#include <limits>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -52,6 +53,18 @@ concept SteerableKrylovSolver =
       { cs.direct_fallbacks() } -> std::convertible_to<int>;
     };
 
+/// A steerable Krylov policy that can also solve with A given only by its
+/// product (an operator), preconditioned as solve() is, without a direct
+/// fallback (that needs A): converged() then says whether the caller must
+/// assemble A after all.
+template <class S>
+concept MatrixFreeKrylovSolver =
+    SteerableKrylovSolver<S> &&
+    requires(S& s, const Eigen::VectorXd& b, Eigen::VectorXd (*op)(const Eigen::VectorXd&)) {
+      { s.solve_operator(op, b) } -> std::convertible_to<Eigen::VectorXd>;
+      s.equilibrate_by(Eigen::SparseMatrix<double, Eigen::ColMajor, int>());
+    };
+
 /// A Krylov policy that can also keep a direct LU of a full system matrix
 /// and precondition solves by it, with the matrix-vector product given as an
 /// operator (so that Newton's tangent need not be assembled).
@@ -80,8 +93,10 @@ struct GmresParams {
   int kept_max_changed_rows = 16;
   /// Solves preconditioned by the companion's LU run on rows scaled by A's
   /// largest entry in each (D A x = D b, preconditioner (D P)^-1); their
-  /// tolerance holds in that scaled norm. The momentum rows scale with the
-  /// viscosity (up to mu(d_min) at rest), the multiplier rows do not:
+  /// tolerance holds in that scaled norm. Solves given A's product only
+  /// (solve_operator) scale by P's largest entries, A's being unknown (the
+  /// companion has A's physics on the same rows). The momentum rows scale
+  /// with the viscosity (up to mu(d_min) at rest), the multiplier rows do not:
   /// unscaled, GMRES's norm is that of a few rows and it stalls (bench_flow
   /// from rest: 157 iterations to 1e-4, scaled 12; docs/method.md section 8).
   bool equilibrate = true;
@@ -117,12 +132,23 @@ class GmresSolver {
   /// A preconditioner that cannot be factorized (singular: e.g. a node that
   /// only slivers touch) is not an error while the direct fallback is on:
   /// the next solves factorize A itself.
-  void analyze_preconditioner(const Matrix& P) {
+  /// `symmetric`: P is symmetric (a Picard matrix), and a Preconditioner
+  /// policy that can factorizes it as L D L^T: half the factors GMRES reads
+  /// at every iteration.
+  void analyze_preconditioner(const Matrix& P, bool symmetric = false) {
+    if constexpr (requires(Preconditioner& p) { p.set_symmetric(true); }) M_.set_symmetric(symmetric);
     analyzed_ = guard([&] { M_.analyze(P); });
     frozen_ = false;  // a new structure: back to the linear-triangle preconditioner
   }
   void factorize_preconditioner(const Matrix& P) {
     usable_ = analyzed_ && guard([&] { M_.factorize(P); });
+    if (usable_) equilibrate_by(P);
+  }
+  /// The row scales of solve_operator: P's largest entries, P the
+  /// preconditioner matrix at the current iterate (rows scale with the
+  /// current viscosity, which a kept preconditioner's do not).
+  void equilibrate_by(const Matrix& P) {
+    if (prm_.equilibrate) row_maxima(P, pre_row_max_);
   }
 
   /// x with |b - A x| <= tol |b|, from x = 0. With allow_fallback false a
@@ -141,25 +167,36 @@ class GmresSolver {
     // Newton's next matrices differ little from it, so GMRES needs a few
     // iterations where the linear-triangle preconditioner needed hundreds.
     const int max_iterations = allow_fallback ? prm_.max_iterations : std::min(prm_.max_iterations, prm_.restart);
-    Eigen::VectorXd x;
-    if (!frozen_ && prm_.equilibrate) {
-      row_maxima(A, row_max_);
-      x = gmres([&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return product(A, v).cwiseQuotient(row_max_); },
-                [this](const Eigen::VectorXd& v) -> Eigen::VectorXd { return M_.solve(v.cwiseProduct(row_max_)); },
-                b.cwiseQuotient(row_max_), max_iterations);
-    } else {
-      x = gmres([&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return product(A, v); },
-                [this](const Eigen::VectorXd& v) -> Eigen::VectorXd {
-                  return frozen_ ? kept_.solve(v) : M_.solve(v);
-                },
-                b, max_iterations);
-    }
+    if (!frozen_ && prm_.equilibrate) row_maxima(A, row_max_);
+    Eigen::VectorXd x = preconditioned([&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return product(A, v); },
+                                       b, row_max_, max_iterations);
     if (last_residual_ <= prm_.tol || !allow_fallback) return x;
     require(prm_.direct_fallback,
             detail::cat("GMRES did not converge in ", last_iterations_, " iterations (relative residual ",
                         last_residual_, ")"),
             where);
     return direct(A, b);
+  }
+
+  /// solve(A, b, false) with A given by its product op(v) = A v, so that A
+  /// need not be assembled (a matrix-free system: an assembly costs ~70
+  /// sparse products at 16k nodes); rows scaled by the preconditioner
+  /// matrix's largest entries (equilibrate_by). Without a usable
+  /// preconditioner it returns 0 at once: converged() is then false, as
+  /// after a cycle that did not converge, and the caller assembles A and
+  /// calls solve().
+  template <class Op>
+  Eigen::VectorXd solve_operator(Op&& op, const Eigen::VectorXd& b) {
+    const Eigen::Index n = b.size();
+    last_iterations_ = 0;
+    last_residual_ = 0.0;
+    if (b.norm() == 0.0) return Eigen::VectorXd::Zero(n);
+    if (frozen_ && kept_n_ != n) frozen_ = false;
+    if ((!usable_ && !frozen_) || (!frozen_ && prm_.equilibrate && pre_row_max_.size() != n)) {
+      last_residual_ = std::numeric_limits<double>::infinity();
+      return Eigen::VectorXd::Zero(n);
+    }
+    return preconditioned(op, b, pre_row_max_, std::min(prm_.max_iterations, prm_.restart));
   }
 
   /// A v in parallel, the same for any thread count (column_product).
@@ -427,6 +464,21 @@ class GmresSolver {
     return z;
   }
 
+  // GMRES on op(x) = b preconditioned by the companion's LU, rows scaled by
+  // `scale` (GmresParams::equilibrate), or after a direct fallback by the
+  // kept LU of that A.
+  template <class Op>
+  Eigen::VectorXd preconditioned(Op&& op, const Eigen::VectorXd& b, const Eigen::VectorXd& scale,
+                                 int max_iterations) {
+    if (!frozen_ && prm_.equilibrate)
+      return gmres([&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return op(v).cwiseQuotient(scale); },
+                   [&](const Eigen::VectorXd& v) -> Eigen::VectorXd { return M_.solve(v.cwiseProduct(scale)); },
+                   b.cwiseQuotient(scale), max_iterations);
+    return gmres(
+        op, [this](const Eigen::VectorXd& v) -> Eigen::VectorXd { return frozen_ ? kept_.solve(v) : M_.solve(v); },
+        b, max_iterations);
+  }
+
   // Below this tolerance GMRES confirms convergence by a product (its
   // estimate drops below b - A x's rounding floor near 1e-13 relative).
   static constexpr double confirm_tol = 1e-10;
@@ -549,6 +601,7 @@ class GmresSolver {
   Eigen::Index kept_n_ = -1;
   int kept_factorizations_ = 0, exact_factorizations_ = 0;
   Eigen::VectorXd row_max_;       // A's largest |entry| per row (equilibrate)
+  Eigen::VectorXd pre_row_max_;   // P's, for solve_operator
   Eigen::MatrixXd product_part_;  // column_product's storage
   Eigen::MatrixXd V_, Z_, H_;
   Eigen::VectorXd cs_, sn_, g_, h_;
@@ -558,6 +611,7 @@ class GmresSolver {
 
 static_assert(PreconditionedLinearSolver<GmresSolver<>>);
 static_assert(SteerableKrylovSolver<GmresSolver<>>);
+static_assert(MatrixFreeKrylovSolver<GmresSolver<>>);
 static_assert(KeptLuLinearSolver<GmresSolver<>>);
 
 }  // namespace maxentflow

@@ -285,7 +285,8 @@ using DirectSolver = MumpsSolver;
 /// The LU GmresSolver keeps as Newton's preconditioner and for its direct
 /// fallback (which GMRES refines to the solve's tolerance).
 using KeptLuSolver = MixedMumpsSolver;
-/// The LU of GmresSolver's linear-triangle companion: single-precision
+/// The LU of GmresSolver's linear-triangle companion (L D L^T, the
+/// companion being a Picard matrix): single-precision
 /// factors, as the companion is itself only an approximation of the max-ent
 /// system (bench_flow 1k-16k: the same GMRES iterations as double factors;
 /// at 16k factorization 2.1 -> 1.1 s, peak 630 -> 582 MB). Measured: at

@@ -219,6 +219,14 @@ struct NonlinearSolverParams {
   /// 100 steps 31.7-33.2 -> 23.8-27.8 s (docs/method.md section 8).
   bool symmetric_lu = true;
   int kept_lu_max_unknowns = 20000;
+  /// Iterations the linear-triangle preconditioner serves (solves from rest,
+  /// systems above kept_lu_max_unknowns) evaluate the residual only and give
+  /// GMRES the system's matrix-free product (MatrixFreePicardSystem), where
+  /// the policy can (MatrixFreeKrylovSolver): the matrix is assembled only
+  /// for a direct fallback. An assembly costs about 30 residuals or 70
+  /// sparse products (bench_flow, 16k nodes), a matrix-free product 1.3
+  /// sparse ones, and the matrix is 752 MB at 64k nodes.
+  bool matrix_free_krylov = true;
   std::ostream* log = nullptr;     ///< per-iteration log
 };
 
@@ -302,9 +310,10 @@ class NonlinearSolver {
       const bool newton = kind == Linearization::newton;
       // Newton's kept LU, where it is made of newton_symmetric's matrix, needs
       // no assembly of Newton's tangent (applied matrix-free).
-      const bool assembled = !(kept && (newton || MatrixFreePicardSystem<System>) &&
-                               (kept_lu_current(newton ? linear_ : picard_linear_, n) ||
-                                (newton && symmetric_newton_lu(sys))));
+      const bool free_krylov = !kept && matrix_free_krylov<System>();
+      const bool assembled = !free_krylov && !(kept && (newton || MatrixFreePicardSystem<System>) &&
+                                               (kept_lu_current(newton ? linear_ : picard_linear_, n) ||
+                                                (newton && symmetric_newton_lu(sys))));
       // A kept Newton LU of newton_symmetric's matrix that is due for this
       // layout: that matrix with the residual, in one pass.
       symmetric_assembled_ = !assembled && newton && kept && symmetric_newton_lu(sys) && !kept_lu_current(linear_, n);
@@ -328,7 +337,7 @@ class NonlinearSolver {
         if constexpr (KeptLuLinearSolver<Linear> && LayoutKeyedSystem<System>)
           dx = kept_lu_direction(sys, X, R, res, kind, assembled, rep, linear_its);
       } else if constexpr (PreconditionedLinearSolver<Linear>) {
-        dx = krylov_direction(sys, X, R, res, kind, rep, linear_its);
+        dx = krylov_direction(sys, X, R, res, kind, free_krylov, rep, linear_its);
       } else {
         dx = direct_direction(sys, R, rep);
       }
@@ -408,7 +417,8 @@ class NonlinearSolver {
   // just after it was made.
   template <class System>
   Eigen::VectorXd krylov_direction(System& sys, const Eigen::VectorXd& X, const Eigen::VectorXd& R,
-                                   double res, Linearization kind, SolveReport& rep, int& linear_its) {
+                                   double res, Linearization kind, bool matrix_free, SolveReport& rep,
+                                   int& linear_its) {
     static_assert(PreconditionedSystem<System>, "a Krylov policy needs a system with assemble_preconditioner()");
     const int n = sys.size();
     auto t0 = clock::now();
@@ -418,7 +428,10 @@ class NonlinearSolver {
       rep.assembly_seconds += seconds(t0);
       t0 = clock::now();
       if (sys.preconditioner_generation() != analyzed_generation_ || analyzed_size_ != n) {
-        linear_.analyze_preconditioner(P_);
+        if constexpr (requires { linear_.analyze_preconditioner(P_, true); })
+          linear_.analyze_preconditioner(P_, symmetric_matrix(sys, Linearization::picard));
+        else
+          linear_.analyze_preconditioner(P_);
         analyzed_generation_ = sys.preconditioner_generation();
         analyzed_size_ = n;
       }
@@ -440,11 +453,42 @@ class NonlinearSolver {
       // A kept preconditioner that GMRES cannot converge with is rebuilt
       // before the (costly) direct fallback is tried.
       t0 = clock::now();
-      dx = linear_.solve(A_, -R, !kept);
+      // Matrix-free (the matrix is then assembled only for the fallback), or
+      // with A_; `last`: the assembled solve may fall back to a direct LU.
+      constexpr bool can_free = MatrixFreeKrylovSolver<Linear> && MatrixFreePicardSystem<System>;
+      auto attempt = [&](bool last) -> Eigen::VectorXd {
+        if constexpr (can_free)
+          if (matrix_free)
+            return linear_.solve_operator(
+                [&](const Eigen::VectorXd& v) -> Eigen::VectorXd {
+                  sys.apply_tangent(X, v, Jv_, kind);
+                  return Jv_;
+                },
+                -R);
+        return linear_.solve(A_, -R, last);
+      };
+      if constexpr (can_free)
+        if (matrix_free && kept) {  // the rows' scales at this iterate (the LU stays P's of an earlier one)
+          sys.assemble_preconditioner(X, P_);
+          linear_.equilibrate_by(P_);
+          rep.assembly_seconds += seconds(t0);
+        }
+      t0 = clock::now();
+      dx = attempt(!kept);
       if (kept && !linear_.converged()) {
         rep.linear_iterations += linear_.last_iterations();
         rep.solve_seconds += seconds(t0);
         refresh();
+        t0 = clock::now();
+        dx = attempt(true);
+      }
+      if (can_free && matrix_free && !linear_.converged()) {  // the fallback needs the matrix itself
+        rep.linear_iterations += linear_.last_iterations();
+        rep.solve_seconds += seconds(t0);
+        t0 = clock::now();
+        Eigen::VectorXd R2;
+        sys.assemble(X, kind, A_, R2);
+        rep.assembly_seconds += seconds(t0);
         t0 = clock::now();
         dx = linear_.solve(A_, -R);
       }
@@ -505,6 +549,16 @@ class NonlinearSolver {
     std::snprintf(line, sizeof line, "  %3d %-6s residual %.3e  increment %.3e  step %.3g  linear its %d\n", it,
                   kind == Linearization::picard ? "picard" : "newton", res, increment, step, linear_its);
     *prm_.log << line;
+  }
+
+  // Iterations without a kept LU go matrix-free (matrix_free_krylov).
+  template <class System>
+  bool matrix_free_krylov() const {
+    if constexpr (MatrixFreeKrylovSolver<Linear> && MatrixFreePicardSystem<System> &&
+                  PreconditionedSystem<System>)
+      return prm_.matrix_free_krylov;
+    else
+      return false;
   }
 
   // The system says its matrix of this kind is symmetric (SymmetricSystem),
