@@ -15,7 +15,7 @@
 // reads it: 2.5 times the kernel's own time. A GMRES iteration on E3 (5k
 // nodes, ~11.5M single-precision factor entries) costs 7.1 ms with this
 // header against 11.1 ms without; a solve with the linear-triangle
-// companion's factors at 16k nodes 8.9 ms against 9.6 ms with the GEMM
+// companion's factors at 16k nodes 9.7 ms against 10.5 ms with the GEMM
 // forwarding alone (docs/method.md, section 8). Results are those of GEMV
 // and TRSV, equal to GEMM's and TRSM's up to the order of the sums.
 #pragma once
